@@ -1,0 +1,145 @@
+"""The sampler contract shared by every distribution in jaxsample.
+
+A sampler is an immutable pytree whose float parameters are leaves, so it can be built inside
+`jit`, `vmap` and `grad`. It is a *warp* from the unit hypercube [0, 1)^uniform_dims onto its
+domain, together with the density of the warped points with respect to the domain's measure
+(solid angle, area, length or counting, as each class states) and, where the warp is a
+bijection, its inverse.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .numerics import safe_log
+
+
+def pytree_dataclass(cls=None, *, static: tuple[str, ...] = ()):
+    """Freeze `cls` as a dataclass and register it as a pytree.
+
+    Fields named in `static` (methods, table sizes) are metadata and trigger recompilation when
+    they change; every other field is a leaf and may be a tracer.
+    """
+
+    def wrap(cls):
+        cls = dataclasses.dataclass(frozen=True)(cls)
+        names = [f.name for f in dataclasses.fields(cls)]
+        data = [n for n in names if n not in static]
+        meta = [n for n in names if n in static]
+        return jax.tree_util.register_dataclass(cls, data_fields=data, meta_fields=meta)
+
+    return wrap if cls is None else wrap(cls)
+
+
+def concrete_value(x: Any) -> np.ndarray | None:
+    """`x` as a float64 NumPy array if it is a concrete number, else None (tracers, placeholders).
+
+    JAX rebuilds pytrees with tracers and sometimes with non-numeric placeholders, so parameter
+    checks only run on values that are really known.
+    """
+    if isinstance(x, jax.core.Tracer):
+        return None
+    if isinstance(x, (int, float, np.ndarray, np.number, jax.Array)) and not isinstance(x, bool):
+        try:
+            return np.asarray(x, dtype=np.float64)
+        except (TypeError, ValueError, jax.errors.ConcretizationTypeError):
+            return None
+    return None
+
+
+def check_parameter(
+    owner: str,
+    name: str,
+    value: Any,
+    low: float = -np.inf,
+    high: float = np.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> None:
+    """Raise `ValueError` naming `owner.name` and its valid range if a concrete value is outside it.
+
+    NaN is always rejected. Traced values are not checked: under `jit` a sampler cannot raise, and
+    an out-of-range traced parameter gives the documented garbage-in behaviour of each sampler.
+    """
+    v = concrete_value(value)
+    if v is None:
+        return
+    left = "(" if low_open else "["
+    right = ")" if high_open else "]"
+    interval = f"{left}{low:g}, {high:g}{right}"
+    bad_low = (v <= low) if low_open else (v < low)
+    bad_high = (v >= high) if high_open else (v > high)
+    bad = np.isnan(v) | bad_low | bad_high
+    if np.any(bad):
+        shown = v if v.ndim == 0 else v[bad].ravel()[:3]
+        raise ValueError(f"{owner}: parameter '{name}' must be in {interval}; got {shown}")
+
+
+def check_choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise ValueError(f"{owner}: parameter '{name}' must be one of {choices}; got {value!r}")
+
+
+def default_float_dtype():
+    """float64 when `jax_enable_x64` is on, else float32."""
+    return jnp.zeros(()).dtype
+
+
+class Sampler:
+    """Base class: `sample`, `sample_with_pdf`, `log_pdf` and `warp_with_pdf` from `warp` and `pdf`.
+
+    Subclasses define `uniform_dims`, `event_shape`, `warp(u)`, `pdf(x)` and `domain()`; they may
+    override `warp_with_pdf` when the density is more accurate from u than from x (sharp lobes),
+    and `inverse` where the warp is a bijection.
+    """
+
+    uniform_dims: ClassVar[int]
+    event_shape: ClassVar[tuple[int, ...]] = ()
+    # Uniform coordinates that are periodic (an azimuth 2πu): u and u ± 1 give the same point, so
+    # round-trip checks compare them modulo 1.
+    periodic_dims: ClassVar[tuple[int, ...]] = ()
+
+    def warp(self, u: jax.Array) -> jax.Array:
+        raise NotImplementedError
+
+    def pdf(self, x: jax.Array) -> jax.Array:
+        raise NotImplementedError
+
+    def log_pdf(self, x: jax.Array) -> jax.Array:
+        """log of `pdf`, -inf outside the support (never NaN)."""
+        return safe_log(self.pdf(x))
+
+    def warp_with_pdf(self, u: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """(warp(u), pdf(warp(u))); subclasses compute the density from u where that is more exact."""
+        x = self.warp(u)
+        return x, self.pdf(x)
+
+    def inverse(self, x: jax.Array) -> jax.Array:
+        raise NotImplementedError(f"{type(self).__name__} has no inverse: its warp is not a bijection")
+
+    @property
+    def has_inverse(self) -> bool:
+        return type(self).inverse is not Sampler.inverse
+
+    def domain(self):
+        """The `jaxsample.domains` object the checks integrate over and bin on."""
+        raise NotImplementedError
+
+    def _uniforms(self, key: jax.Array, shape, dtype) -> jax.Array:
+        shape = (shape,) if isinstance(shape, int) else tuple(shape)
+        dtype = default_float_dtype() if dtype is None else dtype
+        return jax.random.uniform(key, shape + (self.uniform_dims,), dtype=dtype)
+
+    def sample(self, key: jax.Array, shape=(), dtype=None) -> jax.Array:
+        """Samples of shape `shape + event_shape` from uniforms drawn with `key`."""
+        return self.warp(self._uniforms(key, shape, dtype))
+
+    def sample_with_pdf(self, key: jax.Array, shape=(), dtype=None) -> tuple[jax.Array, jax.Array]:
+        """(samples, their densities); the density is the one `pdf` states, computed alongside."""
+        return self.warp_with_pdf(self._uniforms(key, shape, dtype))

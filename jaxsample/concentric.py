@@ -1,0 +1,45 @@
+"""Shirley–Chiu concentric map between the square [0,1)² and the unit disk, and its inverse.
+
+Shirley & Chiu, "A Low Distortion Map Between Disk and Square", JGT 2(3), 1997 (PBRT-v4
+`SampleUniformDiskConcentric`). With a = 2u₀ - 1, b = 2u₁ - 1: where |a| > |b|, r = a and
+φ = (π/4)(b/a); otherwise r = b and φ = π/2 - (π/4)(a/b). The map is area preserving up to the
+constant π/4, so uniform u gives uniform points on the disk.
+
+Both branches are evaluated under `where`; their divisors are replaced by 1 on the lanes where the
+branch is not taken, so that neither the value nor the reverse-mode gradient is NaN on the axes
+and at the centre.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+QUARTER_PI = 0.25 * np.pi
+
+
+def square_to_disk(u):
+    """(x, y, r) with (x, y) on the unit disk and r = sqrt(x² + y²) >= 0, computed without a sqrt."""
+    a = 2.0 * u[..., 0] - 1.0
+    b = 2.0 * u[..., 1] - 1.0
+    a_wins = jnp.abs(a) > jnp.abs(b)
+    a_safe = jnp.where(a_wins, a, 1.0)
+    b_safe = jnp.where(a_wins | (b == 0), 1.0, b)
+    radius = jnp.where(a_wins, a, b)
+    phi = jnp.where(a_wins, QUARTER_PI * (b / a_safe), 2.0 * QUARTER_PI - QUARTER_PI * (a / b_safe))
+    return radius * jnp.cos(phi), radius * jnp.sin(phi), jnp.abs(radius)
+
+
+def disk_to_square(x, y):
+    """Inverse of `square_to_disk`: (u₀, u₁) in [0, 1]² for (x, y) on the unit disk."""
+    r = jnp.sqrt(x * x + y * y)
+    x_wins = jnp.abs(x) >= jnp.abs(y)
+    x_safe = jnp.where(x_wins & (x != 0), x, 1.0)
+    y_safe = jnp.where(x_wins | (y == 0), 1.0, y)
+    # In the |x| >= |y| wedges r = a (signed), b = a (4/π) atan(y/x); in the others symmetric.
+    signed_r = jnp.where(x_wins, jnp.copysign(r, x), jnp.copysign(r, y))
+    ratio = jnp.where(x_wins, y / x_safe, x / y_safe)
+    other = signed_r * jnp.arctan(ratio) / QUARTER_PI
+    a = jnp.where(x_wins, signed_r, other)
+    b = jnp.where(x_wins, other, signed_r)
+    return jnp.stack([0.5 * (a + 1.0), 0.5 * (b + 1.0)], axis=-1)

@@ -1,0 +1,57 @@
+"""Cosine-weighted directions on the upper hemisphere: p(ω) = cos θ / π over solid angle."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import jax.numpy as jnp
+
+from . import concentric
+from ._base import Sampler, check_choice, pytree_dataclass
+from .domains import Directions
+from .numerics import INV_PI, azimuth_fraction, safe_sqrt, spherical_direction
+
+
+@pytree_dataclass(static=("method",))
+class CosineHemisphere(Sampler):
+    """Cosine-weighted hemisphere about +z, p(ω) = max(cos θ, 0)/π over solid angle.
+
+    `method="malley"` (default): Malley's method — a uniform point on the unit disk from the
+    concentric map, lifted to the hemisphere, z = sqrt(1 - r²) (PBRT-v4 `SampleCosineHemisphere`).
+    Neighbouring u stay neighbours, which stratified and Sobol' points exploit.
+
+    `method="inversion"`: the marginal of cos θ has CDF 1 - cos²θ, so cos θ = sqrt(1 - u₀),
+    sin θ = sqrt(u₀), φ = 2πu₁ (Chuang's notes; the seed derivation). sin² θ = u₀ exactly.
+    """
+
+    method: str = "malley"
+    uniform_dims: ClassVar[int] = 2
+    event_shape: ClassVar = (3,)
+
+    @property
+    def periodic_dims(self):
+        return (1,) if self.method == "inversion" else ()
+
+    def __post_init__(self):
+        check_choice("CosineHemisphere", "method", self.method, ("malley", "inversion"))
+
+    def warp(self, u):
+        if self.method == "inversion":
+            u0 = u[..., 0]
+            return spherical_direction(safe_sqrt(u0), safe_sqrt(1.0 - u0), u[..., 1])
+        x, y, r = concentric.square_to_disk(u)
+        # (1 - r)(1 + r) rather than 1 - x² - y²: no cancellation toward the horizon.
+        z = safe_sqrt((1.0 - r) * (1.0 + r))
+        return jnp.stack([x, y, z], axis=-1)
+
+    def pdf(self, x):
+        return jnp.maximum(x[..., 2], 0.0) * INV_PI
+
+    def inverse(self, x):
+        if self.method == "inversion":
+            sin2 = x[..., 0] ** 2 + x[..., 1] ** 2
+            return jnp.stack([jnp.clip(sin2, 0.0, 1.0), azimuth_fraction(x[..., 1], x[..., 0])], axis=-1)
+        return concentric.disk_to_square(x[..., 0], x[..., 1])
+
+    def domain(self):
+        return Directions(breaks=(1.0,))
