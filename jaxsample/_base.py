@@ -70,6 +70,12 @@ def check_parameter(
     v = concrete_value(value)
     if v is None:
         return
+    # A bound like 1e-6 is not representable in float32: float32(1e-6), and that value cast to
+    # float64, must count as in range, so each bound is widened to its float32 rounding.
+    if np.isfinite(low):
+        low = min(low, float(np.float32(low)))
+    if np.isfinite(high):
+        high = max(high, float(np.float32(high)))
     left = "(" if low_open else "["
     right = ")" if high_open else "]"
     interval = f"{left}{low:g}, {high:g}{right}"

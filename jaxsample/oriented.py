@@ -18,6 +18,11 @@ class Oriented(Sampler):
 
     A rotation preserves solid angle, so the density is the base density of the local direction,
     pdf(x) = base.pdf(Fᵀx), and the inverse is base.inverse(Fᵀx). `normal` is normalised.
+
+    Precision: the rotation costs about one float ulp (6e-8 in float32) per component, absolute.
+    Lobes about +z keep sin θ to full relative precision; a rotated lobe narrower than ~1e-3 rad
+    does not, in float32 (its inverse loses ~1e-5 at n = 1000). Work in float64 or in the local
+    frame (the base sampler) when that matters.
     """
 
     base: Sampler

@@ -52,8 +52,11 @@ class PhongLobe(Sampler):
     def log_pdf(self, x):
         n = self.exponent
         upper = x[..., 2] > 0
+        z_safe = jnp.where(upper, x[..., 2], 1.0)
         t = jnp.where(upper, one_minus_cos_theta(x), 0.5)
-        log_cos = jnp.log1p(-t)
+        # log cos θ from 1 - cos θ near the pole (z rounds to 1 there), from z itself toward the
+        # horizon (where a vector a few ulps off unit length could push 1 - cos θ past 1).
+        log_cos = jnp.where(t < 0.5, jnp.log1p(-jnp.minimum(t, 0.5)), jnp.log(z_safe))
         inside = jnp.log1p(n) - jnp.log(2.0 * jnp.pi) + n * log_cos
         # At the horizon (z = 0) the density is (n+1)/2π for n = 0 and 0 for n > 0.
         horizon = jnp.where(n == 0, jnp.log1p(n) - jnp.log(2.0 * jnp.pi), -jnp.inf)

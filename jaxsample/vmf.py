@@ -24,7 +24,8 @@ class VonMisesFisher(Sampler):
 
     The textbook inverse CDF, log(e^{-κ} + 2u sinh κ)/κ, overflows near κ = 89 in float32 and
     cancels for tiny κ; these forms do neither: at κ = 1e-6, s ≈ 2κ and t ≈ 2u₀ (uniform sphere);
-    at κ = 1e7, s = 1 and t = -log1p(-u₀)/κ. u₀ = 0 is the mode (+z).
+    at κ = 1e7, s = 1 and t = -log1p(-u₀)/κ. u₀ = 0 is the mode (+z). Near the antipode, reachable
+    for small κ, 1 + cos θ is computed directly as log1p((1 - u₀) expm1(2κ)) / κ.
 
     Parameter: `kappa` in [1e-6, 1e7] (checked when concrete; κ must be > 0).
     """
@@ -46,12 +47,22 @@ class VonMisesFisher(Sampler):
     def _one_minus_cos(self, u0):
         return jnp.clip(-jnp.log1p(-u0 * self._s()) / self.kappa, 0.0, 2.0)
 
+    def _one_plus_cos(self, u0):
+        # 1 + cos θ = 2 - t cancels near the antipode, which small κ reaches; written directly it
+        # is log1p((1 - u₀) expm1(2κ)) / κ. Only used where t > 1, which needs κ < ~37 even in
+        # float64, so 2κ is capped at 80 to keep expm1 finite on the lanes that discard it.
+        two_kappa = jnp.minimum(2.0 * self.kappa, 80.0)
+        direct = jnp.log1p((1.0 - u0) * jnp.expm1(two_kappa)) / self.kappa
+        t = self._one_minus_cos(u0)
+        return jnp.where(t > 1.0, jnp.clip(direct, 0.0, 2.0), 2.0 - t), t
+
     def warp(self, u):
-        return direction_from_one_minus_cos(self._one_minus_cos(u[..., 0]), u[..., 1])
+        one_plus_cos, t = self._one_plus_cos(u[..., 0])
+        return direction_from_one_minus_cos(t, u[..., 1], one_plus_cos)
 
     def warp_with_pdf(self, u):
-        t = self._one_minus_cos(u[..., 0])
-        x = direction_from_one_minus_cos(t, u[..., 1])
+        one_plus_cos, t = self._one_plus_cos(u[..., 0])
+        x = direction_from_one_minus_cos(t, u[..., 1], one_plus_cos)
         return x, jnp.exp(self._log_normalizer() - self.kappa * t)
 
     def log_pdf(self, x):
