@@ -1,0 +1,344 @@
+"""Layer 4: the Monte Carlo estimator ∫ f dμ ≈ (1/n) Σ f(x_i) / p(x_i), in constant memory.
+
+`estimate(f, sampler, key, n)` draws x_i = sampler.warp(u_i) from a uniform source
+(`jaxsample.uniforms`), averages Y_i = f(x_i)/p(x_i) (0 where p = 0, in value and gradient) and
+returns an `Estimate` with the mean, its standard error and diagnostics.
+
+Streaming: the n samples are processed in chunks of `chunk_size` inside `lax.scan`, so memory does
+not grow with n. The point with global index i is the same whatever the chunk size, the device
+count or the jit/vmap context (counter-based sources), so the estimate changes only by float
+rounding between chunkings and shardings.
+
+Accumulation, and why it is careful: within a chunk the sums are taken in a tree of blocks of
+`_BLOCK` values (error ~ (log n) ε rather than n ε); across chunks the running sums are
+compensated (Neumaier's variant of Kahan summation), and the sum of squared deviations M2 is
+merged by Chan, Golub & LeVeque's pairwise update M2 = M2_a + M2_b + δ² n_a n_b / n (Chan et al.
+1979). For a constant integrand every chunk sum is exact and so is the mean, for any n.
+
+Standard error: with independent points (the "random" source) it is sqrt(s²/n), s² the sample
+variance of Y. With R > 1 replicates (stratified, Sobol'), points within a replicate are
+dependent; the stderr is then the standard deviation of the R replicate means over sqrt(R).
+
+Gradients (`mode`, Zeltner et al. 2021): "attached" differentiates through the sample and its
+density (pathwise); "detached" applies `stop_gradient` to the sample and its density *together*,
+so only f carries the derivative. Chunks are `jax.checkpoint`ed, so reverse mode recomputes a
+chunk instead of storing it: gradient memory does not grow with n either.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._base import check_choice, default_float_dtype, pytree_dataclass
+from .numerics import safe_div, safe_sqrt
+from .uniforms import Source, as_source, seed_from_key
+
+__all__ = ["Estimate", "estimate", "DEFAULT_CHUNK_SIZE"]
+
+DEFAULT_CHUNK_SIZE = 1 << 16
+_BLOCK = 256
+_NORMAL_QUANTILE_975 = 1.959963984540054
+
+
+@pytree_dataclass(static=("n", "replicates"))
+class Estimate:
+    """A Monte Carlo estimate; a pytree (mean, stderr and diagnostics are leaves).
+
+    - `mean`: the estimate of the integral (shape of f's value).
+    - `stderr`: its standard error (see the module docstring for how replicates are used).
+    - `variance`: the sample variance of the per-sample values Y = f/p (for Sobol' and stratified
+      points this is *not* the estimator's variance times n; use `stderr`).
+    - `max_abs`: the largest |Y| seen, a check for heavy tails (a few samples dominating).
+    - `ess`: effective sample size (Σ|Y|)² / Σ Y², n for constant Y; small values warn that the
+      variance, and so the stderr, may be unreliable (Kong 1992; Owen 2013, ch. 9).
+    - `n`, `replicates`: static.
+    """
+
+    mean: jax.Array
+    stderr: jax.Array
+    variance: jax.Array
+    max_abs: jax.Array
+    ess: jax.Array
+    n: int = 0
+    replicates: int = 1
+
+    def interval(self, level: float = 0.95) -> tuple[jax.Array, jax.Array]:
+        """Normal-approximation interval mean ± z stderr (z = 1.96 for 95%)."""
+        z = _normal_quantile(0.5 + 0.5 * level)
+        return self.mean - z * self.stderr, self.mean + z * self.stderr
+
+    def chebyshev_interval(self, level: float = 0.95) -> tuple[jax.Array, jax.Array]:
+        """Distribution-free interval mean ± k stderr with k = 1/sqrt(1 - level) (4.47 for 95%).
+
+        By Chebyshev's inequality P(|mean - I| >= k σ) <= 1/k² for *any* distribution with finite
+        variance σ² of the mean; it is exact given σ, approximate when σ is the estimated stderr.
+        """
+        k = 1.0 / math.sqrt(1.0 - level)
+        return self.mean - k * self.stderr, self.mean + k * self.stderr
+
+
+def _normal_quantile(p: float) -> float:
+    if abs(p - 0.975) < 1e-12:
+        return _NORMAL_QUANTILE_975
+    # Acklam-free: bisection on erf, only at trace time (p is a Python float).
+    lo, hi = -10.0, 10.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if 0.5 * (1.0 + math.erf(mid / math.sqrt(2.0))) < p:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+# ----------------------------------------------------------------------------------------------
+# Accumulation
+# ----------------------------------------------------------------------------------------------
+
+
+def tree_sum(values: jax.Array) -> jax.Array:
+    """Sum over axis 0 in a tree of blocks of `_BLOCK` (zero-padded): error ~ log_B(n) levels."""
+    while values.shape[0] > _BLOCK:
+        length = values.shape[0]
+        padded = -(-length // _BLOCK) * _BLOCK
+        if padded != length:
+            pad = [(0, padded - length)] + [(0, 0)] * (values.ndim - 1)
+            values = jnp.pad(values, pad)
+        values = values.reshape((padded // _BLOCK, _BLOCK) + values.shape[1:]).sum(axis=1)
+    return values.sum(axis=0)
+
+
+@pytree_dataclass
+class _Moments:
+    """Running statistics of a stream: per-replicate compensated sums, M2, max |Y|, Σ|Y|, count."""
+
+    sums: jax.Array          # (R, *out): Σ Y per replicate (high part)
+    compensation: jax.Array  # (R, *out): the low part lost by the additions (Neumaier)
+    m2: jax.Array            # (*out): Σ (Y - mean)²
+    max_abs: jax.Array
+    sum_abs: jax.Array
+    count: jax.Array         # float: exact for the chunk multiples we use
+
+
+def _neumaier_add(total, compensation, value):
+    new_total = total + value
+    lost = jnp.where(jnp.abs(total) >= jnp.abs(value),
+                     (total - new_total) + value, (value - new_total) + total)
+    return new_total, compensation + lost
+
+
+def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int) -> _Moments:
+    """Statistics of one chunk given as g arrays of values (count / g, *out) (see Source.groups).
+
+    With replicates > 1 there is one group, whose length is a multiple of `replicates`.
+    """
+    first = groups[0]
+    count = first.shape[0] * len(groups)
+    if replicates > 1:
+        per_replicate = tree_sum(first.reshape((count // replicates, replicates) + first.shape[1:]))
+    else:
+        per_replicate = tree_sum(sum(groups))[None]
+    chunk_mean = per_replicate.sum(axis=0) / count
+    m2 = tree_sum(sum((y - chunk_mean) * (y - chunk_mean) for y in groups))
+    max_abs = functools.reduce(jnp.maximum, [jnp.max(jnp.abs(y), axis=0) for y in groups])
+    return _Moments(
+        sums=per_replicate,
+        compensation=jnp.zeros_like(per_replicate),
+        m2=m2,
+        max_abs=max_abs,
+        sum_abs=tree_sum(sum(jnp.abs(y) for y in groups)),
+        count=jnp.asarray(count, first.dtype),
+    )
+
+
+def _merge(a: _Moments, b: _Moments) -> _Moments:
+    """Chan et al. (1979) pairwise merge of M2; compensated sums; a.count may be 0."""
+    count = a.count + b.count
+    mean_a = jnp.sum(a.sums + a.compensation, axis=0) / jnp.maximum(a.count, 1.0)
+    mean_b = jnp.sum(b.sums + b.compensation, axis=0) / b.count
+    delta = mean_b - mean_a
+    m2 = a.m2 + b.m2 + delta * delta * (a.count * b.count / count)
+    sums, compensation = _neumaier_add(a.sums, a.compensation + b.compensation, b.sums)
+    return _Moments(sums, compensation, m2, jnp.maximum(a.max_abs, b.max_abs),
+                    a.sum_abs + b.sum_abs, count)
+
+
+def _empty_moments(replicates: int, out_shape, dtype) -> _Moments:
+    zeros = jnp.zeros((replicates,) + out_shape, dtype)
+    scalar = jnp.zeros(out_shape, dtype)
+    return _Moments(zeros, zeros, scalar, scalar, scalar, jnp.zeros((), dtype))
+
+
+def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
+    replicate_sums = m.sums + m.compensation
+    mean = jnp.sum(replicate_sums, axis=0) / n
+    variance = m.m2 / max(n - 1, 1)
+    if replicates == 1:
+        stderr = safe_sqrt(variance / n)
+    else:
+        replicate_means = replicate_sums / (n // replicates)
+        spread = replicate_means - jnp.mean(replicate_means, axis=0)
+        stderr = safe_sqrt(jnp.sum(spread * spread, axis=0) / (replicates - 1) / replicates)
+    sum_squares = m.m2 + n * mean * mean
+    ess = safe_div(m.sum_abs * m.sum_abs, sum_squares)
+    return Estimate(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
+                    n=n, replicates=replicates)
+
+
+# ----------------------------------------------------------------------------------------------
+# The streaming engine: values_fn(u) -> Y, summed over [base, base + count) in chunks
+# ----------------------------------------------------------------------------------------------
+
+
+def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,
+            chunk_size: int, out_shape, aligned: bool) -> _Moments:
+    """Moments of values_fn over the points with global indices [base, base + count)."""
+    replicates = source.replicates
+
+    def chunk(offset, size):
+        points = source.groups(seed, offset, size, dims, dtype, total=total, aligned=aligned)
+        # Materialize the chunk's values once (a few hundred KiB, cache resident): otherwise XLA
+        # may fuse the whole generator and warp into each of the reductions below and run it
+        # several times over.
+        values = jax.lax.optimization_barrier(tuple(values_fn(u) for u in points))
+        return _chunk_moments(values, replicates)
+
+    moments = _empty_moments(replicates, out_shape, dtype)
+    steps, tail = divmod(count, chunk_size)
+    if steps:
+        chunk_body = jax.checkpoint(lambda offset: chunk(offset, chunk_size))
+
+        def body(state, step):
+            offset = base + step * chunk_size
+            return _merge(state, chunk_body(offset)), None
+
+        moments, _ = jax.lax.scan(body, moments, jnp.arange(steps, dtype=jnp.uint32))
+    if tail:
+        moments = _merge(moments, chunk(base + steps * chunk_size, tail))
+    return moments
+
+
+def _check_n(owner: str, n, multiple: int) -> int:
+    if not isinstance(n, (int, np.integer)) or n < 2:
+        raise ValueError(f"{owner}: parameter 'n' must be a Python int >= 2; got {n!r}")
+    if n % multiple:
+        raise ValueError(f"{owner}: parameter 'n' must be a multiple of {multiple} "
+                         f"(replicates x devices); got {n}")
+    return int(n)
+
+
+def _check_chunk_size(owner: str, chunk_size, replicates: int) -> int:
+    if chunk_size is None:
+        chunk_size = DEFAULT_CHUNK_SIZE
+    step = math.lcm(4, replicates)
+    if not isinstance(chunk_size, (int, np.integer)) or chunk_size < step or chunk_size % step:
+        raise ValueError(f"{owner}: parameter 'chunk_size' must be a positive multiple of {step}; "
+                         f"got {chunk_size!r}")
+    return int(chunk_size)
+
+
+def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=None,
+               chunk_size=None, out_shape=(), dtype=None, owner="estimate") -> Estimate:
+    """The engine behind every estimator: the Estimate of values_fn(u) over n points.
+
+    `values_fn` maps a (count, dims) block of uniforms to (count, *out_shape) values; it must be
+    elementwise over the block (point i's value depends on u_i only).
+    """
+    source = as_source(uniforms)
+    replicates = source.replicates
+    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    devices = 1 if mesh is None else mesh.size
+    n = _check_n(owner, n, replicates * devices)
+    chunk_size = _check_chunk_size(owner, chunk_size, replicates)
+    seed = seed_from_key(key)
+
+    if mesh is None:
+        moments = _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape, True)
+        return _finish(moments, n, replicates)
+
+    per_device = n // devices
+    axes = tuple(mesh.axis_names)
+
+    def local(seed):
+        device = jax.lax.axis_index(axes)
+        base = device.astype(jnp.uint32) * jnp.uint32(per_device)
+        m = _stream(values_fn, source, seed, dims, dtype, base, per_device, n, chunk_size,
+                    out_shape, per_device % 4 == 0)
+        # Combine devices: compensated sums are added, M2 merged about the global mean.
+        sums = jax.lax.psum(m.sums + m.compensation, axes)
+        local_mean = jnp.sum(m.sums + m.compensation, axis=0) / per_device
+        global_mean = jnp.sum(sums, axis=0) / n
+        shift = local_mean - global_mean
+        m2 = jax.lax.psum(m.m2 + per_device * shift * shift, axes)
+        return _Moments(sums, jnp.zeros_like(sums), m2, jax.lax.pmax(m.max_abs, axes),
+                        jax.lax.psum(m.sum_abs, axes), jnp.asarray(n, dtype))
+
+    from jax.sharding import PartitionSpec
+
+    moments = jax.shard_map(local, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec(),
+                            check_vma=False)(seed)
+    return _finish(moments, n, replicates)
+
+
+# ----------------------------------------------------------------------------------------------
+# estimate
+# ----------------------------------------------------------------------------------------------
+
+
+def _detach(mode: str, *arrays):
+    check_choice("estimate", "mode", mode, ("attached", "detached"))
+    if mode == "detached":
+        return jax.lax.stop_gradient(arrays)
+    return arrays
+
+
+def _broadcast_pdf(pdf, values):
+    return pdf.reshape(pdf.shape + (1,) * (values.ndim - pdf.ndim))
+
+
+def _output_shape(f, sampler, dims: int, dtype):
+    u = jax.ShapeDtypeStruct((dims,), dtype)
+    out = jax.eval_shape(lambda u: f(sampler.warp(u)), u)
+    return tuple(out.shape)
+
+
+def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
+             uniforms="random", mode: str = "attached", mesh=None, chunk_size: int | None = None,
+             dtype=None) -> Estimate:
+    """∫ f dμ as the mean of f(x)/p(x) over n samples of `sampler` (μ is the sampler's measure).
+
+    Args:
+      f: maps ONE sample (shape `sampler.event_shape`) to a value (any fixed shape); it is vmapped.
+      sampler: any `jaxsample.Sampler` (a pytree: its parameters may be traced).
+      key: a typed `jax.random.key`; consumed once (turned into the source's seed words).
+      n: number of samples, a Python int (a multiple of the source's replicates x devices).
+      uniforms: "random" (default, Philox4x32-10), "stratified", "sobol" or a `uniforms.Source`.
+      mode: "attached" (pathwise: sample and pdf move with the parameters) or "detached"
+        (sample and pdf are constants together; only f carries derivatives).
+      mesh: a `jax.sharding.Mesh`; the n samples are split evenly over all its devices, each
+        drawing its own index range of the same stream, and combined with `psum`.
+      chunk_size: samples per streamed chunk (default 2^16; a multiple of 4 and of replicates).
+      dtype: float dtype of the uniforms (default float32, float64 under jax_enable_x64).
+
+    Returns: `Estimate`. Y = f/p is 0 where p = 0, with finite gradients there.
+    """
+    check_choice("estimate", "mode", mode, ("attached", "detached"))
+    dims = sampler.uniform_dims
+    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    out_shape = _output_shape(f, sampler, dims, dtype)
+
+    def values_fn(u):
+        x, pdf = sampler.warp_with_pdf(u)
+        x, pdf = _detach(mode, x, pdf)
+        fx = jax.vmap(f)(x)
+        return safe_div(fx, _broadcast_pdf(pdf, fx))
+
+    return run_stream(values_fn, dims, key, n, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
+                      out_shape=out_shape, dtype=dtype)
