@@ -44,6 +44,11 @@ def concrete_value(x: Any) -> np.ndarray | None:
     """
     if isinstance(x, jax.core.Tracer):
         return None
+    if isinstance(x, (list, tuple)):
+        try:
+            return np.asarray(x, dtype=np.float64)
+        except (TypeError, ValueError):
+            return None
     if isinstance(x, (int, float, np.ndarray, np.number, jax.Array)) and not isinstance(x, bool):
         try:
             return np.asarray(x, dtype=np.float64)
@@ -138,9 +143,15 @@ class Sampler:
         raise NotImplementedError
 
     def _uniforms(self, key: jax.Array, shape, dtype) -> jax.Array:
+        # The estimators' counter-based Philox stream (jaxsample.uniforms): several times faster
+        # than threefry on CPU, and strictly inside (0, 1).
+        from .uniforms import uniform_block
+
         shape = (shape,) if isinstance(shape, int) else tuple(shape)
         dtype = default_float_dtype() if dtype is None else dtype
-        return jax.random.uniform(key, shape + (self.uniform_dims,), dtype=dtype)
+        count = int(np.prod(shape, dtype=np.int64))
+        u = uniform_block("random", key, 0, count, self.uniform_dims, dtype=dtype)
+        return u.reshape(shape + (self.uniform_dims,))
 
     def sample(self, key: jax.Array, shape=(), dtype=None) -> jax.Array:
         """Samples of shape `shape + event_shape` from uniforms drawn with `key`."""

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -27,6 +28,11 @@ def _to_float64(tree):
         return leaf
 
     return jax.tree_util.tree_map(cast, tree)
+
+
+@functools.partial(jax.jit, static_argnums=2)
+def _sample_jit(sampler, key, n):
+    return sampler.sample(key, (n,))
 
 
 @jax.jit
@@ -103,11 +109,11 @@ def chi2_test(sampler, key, n_samples: int = 1_000_000, n_cells: int = 128, sign
     """
     pilot_key, test_key = jax.random.split(key)
     domain = sampler.domain()
-    pilot = np.asarray(sampler.sample(pilot_key, (n_pilot,)))
+    pilot = np.asarray(_sample_jit(sampler, pilot_key, n_pilot))
     cells = domain.cells(pilot, n_cells)
     mass = np.bincount(cells.cell_of_point, weights=cells.weights * pdf_float64(sampler, cells.points),
                        minlength=cells.n_cells)
-    samples = np.asarray(sampler.sample(test_key, (n_samples,)))
+    samples = np.asarray(_sample_jit(sampler, test_key, n_samples))
     index = np.asarray(cells.assign(samples))
     inside = index >= 0
     observed = np.bincount(index[inside], minlength=cells.n_cells).astype(np.float64)
