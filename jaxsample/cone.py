@@ -59,7 +59,8 @@ class UniformCone(Sampler):
         """Cap of the given solid angle in (0, 4π]: h = Ω / (2π)."""
         check_parameter("UniformCone.from_solid_angle", "solid_angle", solid_angle, 0.0, 4 * np.pi,
                         low_open=True)
-        return cls(one_minus_cos_theta_max=jnp.asarray(solid_angle) * INV_2PI)
+        # 4π rounded to float32 and divided by 2π can land an ulp above 2: clamp to the sphere.
+        return cls(one_minus_cos_theta_max=jnp.minimum(jnp.asarray(solid_angle) * INV_2PI, 2.0))
 
     @classmethod
     def from_sin2(cls, sin2_theta_max):
