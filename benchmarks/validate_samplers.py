@@ -1,4 +1,4 @@
-"""Normalization error and chi-square p-values of the flat, 1D, discrete and mixture samplers.
+"""Normalization error and chi-square p-values of every sampler (directional, flat, 1D, discrete, mixture).
 
 Run alone: `python benchmarks/validate_samplers.py` (about a minute on 2 cores). Normalization is
 ∫ pdf by deterministic float64 quadrature; chi-square uses 2·10^5 samples (10^6 for the 10^6-entry
@@ -11,6 +11,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+import jaxsample as js
 
 from jaxsample.box import UniformBox
 from jaxsample.discrete import Discrete
@@ -34,9 +36,17 @@ def main():
     w[::7] = 0
     big = rng.random(10**6)
     big[rng.random(10**6) < 0.3] = 0
-    keys = iter(jax.random.split(jax.random.key(0), 40))
+    keys = iter(jax.random.split(jax.random.key(0), 64))
     print("| sampler | ∫pdf - 1 | chi2 p | dof |\n|---|---|---|---|")
     f32 = {
+        "UniformSphere": js.UniformSphere(), "UniformSphere rejection": js.UniformSphere(method="rejection"),
+        "UniformHemisphere": js.UniformHemisphere(), "CosineHemisphere malley": js.CosineHemisphere(),
+        "CosineHemisphere inversion": js.CosineHemisphere(method="inversion"),
+        "PhongLobe 0": js.PhongLobe(0.0), "PhongLobe 100": js.PhongLobe(100.0), "PhongLobe 1e7": js.PhongLobe(1e7),
+        "UniformCone cos 0.5": js.UniformCone(0.5), "UniformCone 1e-8 sr": js.UniformCone.from_solid_angle(1e-8),
+        "VonMisesFisher 1e-6": js.VonMisesFisher(1e-6), "VonMisesFisher 89": js.VonMisesFisher(89.0),
+        "VonMisesFisher 1e7": js.VonMisesFisher(1e7),
+        "Oriented Phong 30 (normal -z+)": js.Oriented(js.PhongLobe(30.0), jnp.array([0.3, -0.5, -0.8])),
         "UniformDisk concentric": UniformDisk(), "UniformDisk polar": UniformDisk("polar"),
         "UniformDisk rejection": UniformDisk("rejection"),
         "UniformTriangle R²": UniformTriangle(jnp.array([0., 0.]), jnp.array([1., .2]), jnp.array([.3, 1.])),

@@ -5,7 +5,7 @@ Samplers are immutable pytrees with `warp`, `pdf`, `log_pdf`, `inverse`, `sample
 them into integrals with standard errors under `jit`, `vmap`, `grad` and a device mesh.
 """
 
-from . import domains, numerics, quadrature, testing, uniforms
+from . import domains, numerics, quadrature, scene, testing, uniforms
 from ._base import Sampler
 from .box import UniformBox
 from .cone import UniformCone
@@ -42,5 +42,5 @@ __all__ = [
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
     "estimate_control_variate",
     # modules
-    "domains", "numerics", "quadrature", "testing", "uniforms",
+    "domains", "numerics", "quadrature", "scene", "testing", "uniforms",
 ]

@@ -1,0 +1,25 @@
+"""Layer 7, the scene: only what one shading point needs (design.md).
+
+BRDFs (`Lambertian`, `Phong`) work in the local shading frame (normal +z) and have `eval`,
+`sample` and `pdf`; lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `EnvironmentMap`) work in
+world space and have `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)`, `radiance_from(point, ω)` and
+`sampler(point)` (a `jaxsample.Sampler` of directions, for the statistical checks). `shade`
+estimates the outgoing radiance by BRDF sampling, light sampling or MIS; `reference_radiance`
+gives the float64 quadrature value the tests hold it to. No ray tracer, no occlusion, no images.
+"""
+
+from .environment import EnvironmentDirections, EnvironmentMap
+from .lambertian import Lambertian
+from .phong import Phong, reflect
+from .reference import reference_radiance
+from .shade import STRATEGIES, mis_weight, shade
+from .sky import ConstantSky
+from .sphere_light import SphereLight
+from .triangle_light import TriangleLight, TriangleLightDirections
+
+__all__ = [
+    "Lambertian", "Phong", "reflect",
+    "ConstantSky", "SphereLight", "TriangleLight", "TriangleLightDirections", "EnvironmentMap",
+    "EnvironmentDirections",
+    "shade", "mis_weight", "STRATEGIES", "reference_radiance",
+]

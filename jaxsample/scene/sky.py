@@ -1,0 +1,44 @@
+"""A constant sky: the same radiance from every direction, at infinity."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from .._base import check_parameter, pytree_dataclass
+from ..numerics import INV_4PI
+from ..sphere import UniformSphere
+
+
+@pytree_dataclass
+class ConstantSky:
+    """L_i(ω) = radiance for every direction ω (the white furnace when radiance = 1).
+
+    Light sampling draws ω uniformly on the sphere, p = 1/(4π) over solid angle. It does not know
+    the surface normal, so half of its samples fall below the surface; a cosine-weighted BRDF
+    sampler is the better strategy here, and MIS finds that out by itself.
+
+    Parameter: `radiance` >= 0 (checked when concrete).
+    """
+
+    radiance: jax.Array
+
+    def __post_init__(self):
+        check_parameter("ConstantSky", "radiance", self.radiance, 0.0)
+
+    def sampler(self, point: jax.Array) -> UniformSphere:
+        """The directional sampler of `sample` as seen from `point` (world frame)."""
+        del point
+        return UniformSphere()
+
+    def sample(self, point, u):
+        """(ω, L_i(ω), p(ω)) from uniforms u (..., 2); p over solid angle at `point`."""
+        wi, pdf = self.sampler(point).warp_with_pdf(u)
+        return wi, jnp.broadcast_to(jnp.asarray(self.radiance, pdf.dtype), pdf.shape), pdf
+
+    def pdf(self, point, wi):
+        return jnp.full(wi.shape[:-1], INV_4PI, jnp.result_type(wi, float))
+
+    def radiance_from(self, point, wi):
+        """L_i arriving at `point` from direction `wi` (world frame)."""
+        return jnp.broadcast_to(jnp.asarray(self.radiance, jnp.result_type(wi, float)), wi.shape[:-1])
