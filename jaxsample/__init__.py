@@ -5,15 +5,16 @@ Samplers are immutable pytrees with `warp`, `pdf`, `log_pdf`, `inverse`, `sample
 them into integrals with standard errors under `jit`, `vmap`, `grad` and a device mesh.
 """
 
-from . import domains, numerics, quadrature, scene, testing, uniforms
+from . import domains, gradients, numerics, quadrature, scene, testing, uniforms
 from ._base import Sampler
 from .box import UniformBox
 from .cone import UniformCone
 from .cosine import CosineHemisphere
 from .discrete import Discrete
 from .disk import UniformDisk
-from .estimate import Estimate, estimate
+from .estimate import Estimate, estimate, integrand_values
 from .estimators import estimate_antithetic, estimate_control_variate, estimate_mis, estimate_ratio
+from .gradients import expectation, expectation_values
 from .exponential import Exponential, TruncatedExponential
 from .frame import Frame
 from .mixture import Mixture
@@ -40,7 +41,9 @@ __all__ = [
     "Rejection", "RejectionInfo", "Transformed", "Mixture", "Sampler",
     # estimators
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
-    "estimate_control_variate",
+    "estimate_control_variate", "integrand_values",
+    # gradients
+    "expectation", "expectation_values",
     # modules
-    "domains", "numerics", "quadrature", "scene", "testing", "uniforms",
+    "domains", "gradients", "numerics", "quadrature", "scene", "testing", "uniforms",
 ]

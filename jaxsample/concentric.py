@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .numerics import sincos_2pi
+from .numerics import safe_sqrt, sincos_2pi
 
 QUARTER_PI = 0.25 * np.pi
 
@@ -37,7 +37,9 @@ def square_to_disk(u):
 
 def disk_to_square(x, y):
     """Inverse of `square_to_disk`: (u₀, u₁) in [0, 1]² for (x, y) on the unit disk."""
-    r = jnp.sqrt(x * x + y * y)
+    # safe_sqrt: the reverse-mode derivative of sqrt at the centre is inf, and times the zero
+    # derivative of x² + y² it would give NaN; safe_sqrt's is 0 there.
+    r = safe_sqrt(x * x + y * y)
     x_wins = jnp.abs(x) >= jnp.abs(y)
     x_safe = jnp.where(x_wins & (x != 0), x, 1.0)
     y_safe = jnp.where(x_wins | (y == 0), 1.0, y)
