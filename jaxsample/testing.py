@@ -18,10 +18,12 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import gammaincc
 
-__all__ = ["Chi2Result", "chi2_test", "normalization", "inverse_error", "jacobian_error", "pdf_float64"]
+__all__ = ["Chi2Result", "chi2_test", "normalization", "inverse_error", "jacobian_error", "pdf_float64", "to_float64"]
 
 
-def _to_float64(tree):
+def to_float64(tree):
+    """`tree` with every floating leaf cast to float64 (call under `jax.enable_x64(True)`)."""
+
     def cast(leaf):
         if isinstance(leaf, (jax.Array, np.ndarray, float)) and jnp.issubdtype(jnp.result_type(leaf), jnp.floating):
             return jnp.asarray(leaf, jnp.float64)
@@ -54,7 +56,7 @@ def pdf_float64(sampler, points: np.ndarray, chunk: int = 1 << 16) -> np.ndarray
     if padded > n:
         points = np.concatenate([points, np.repeat(points[:1], padded - n, axis=0)])
     with jax.enable_x64(True):
-        sampler64 = _to_float64(sampler)
+        sampler64 = to_float64(sampler)
         out = [np.asarray(_pdf_jit(sampler64, jnp.asarray(points[i:i + chunk])))
                for i in range(0, padded, chunk)]
     return np.concatenate(out)[:n] if out else np.zeros(0)

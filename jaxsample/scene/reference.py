@@ -23,6 +23,7 @@ import numpy as np
 
 from ..frame import Frame
 from ..quadrature import gauss_legendre_nodes_weights
+from ..testing import to_float64
 from .environment import EnvironmentMap, direction_from_uv
 from .sky import ConstantSky
 from .sphere_light import SphereLight
@@ -41,14 +42,6 @@ def _panels(low, high, panels, order):
 
 def _midpoints(count):
     return (np.arange(count) + 0.5) / count, np.full(count, 1.0 / count)
-
-
-def _to_float64(tree):
-    def cast(leaf):
-        if isinstance(leaf, (jax.Array, np.ndarray, float)) and jnp.issubdtype(jnp.result_type(leaf), jnp.floating):
-            return jnp.asarray(leaf, jnp.float64)
-        return leaf
-    return jax.tree_util.tree_map(cast, tree)
 
 
 def _cap(frame, t, phi_fraction):
@@ -123,11 +116,11 @@ def reference_radiance(point, normal, wo, brdf, lights, *, panels: int = 64, ord
     lights = tuple(lights) if isinstance(lights, (list, tuple)) else (lights,)
     with jax.enable_x64(True):
         point, normal, wo = (jnp.asarray(np.asarray(v, np.float64)) for v in (point, normal, wo))
-        brdf = _to_float64(brdf)
+        brdf = to_float64(brdf)
         frame = Frame.from_normal(normal)
         wo_local = frame.to_local(wo / jnp.linalg.norm(wo))
         total = 0.0
         for light in lights:
-            light = _to_float64(light) if not isinstance(light, EnvironmentMap) else light
+            light = to_float64(light) if not isinstance(light, EnvironmentMap) else light
             total += _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
     return total
