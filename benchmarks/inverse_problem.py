@@ -238,7 +238,7 @@ def run_inverse_problem(quick: bool = True, out_dir=None, *, iterations: int | N
     return result
 
 
-def _summary(result) -> str:
+def markdown_summary(result) -> str:
     lines = [f"truth: exponent {TRUE_EXPONENT:g}, albedo {TRUE_ALBEDO:g}; start: exponent {START_EXPONENT:g}, "
              f"albedo {START_ALBEDO:g}"]
     for f in result["fits"]:
@@ -260,7 +260,7 @@ def main(argv=None):
     parser.add_argument("--out", default="inverse_problem_out", help="directory for the JSON and the PNG")
     args = parser.parse_args(argv)
     result = run_inverse_problem(args.quick, args.out)
-    print(_summary(result))
+    print(markdown_summary(result))
     return 0
 
 
