@@ -204,7 +204,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         progress("[scene: inverse problem]")
         result = inverse.run_inverse_problem(quick=quick or tiny, out_dir=str(out))
         md += ["## Scene: recovering a Phong exponent and albedo by gradient descent\n",
-               inverse.markdown_summary(result)]
+               "```\n" + inverse.markdown_summary(result).strip() + "\n```\n"]
     except (ImportError, AttributeError) as error:
         md += ["## Scene\n", f"Not available in this checkout ({error}).\n"]
 
