@@ -132,6 +132,19 @@ def main():
     results["sobol"] = {"rmse": rmse, "rmse_slope": slope, "t_sobol_s": t_sobol, "t_random_s": t_random,
                         "efficiency_ratio_vs_random": (var_random * t_random) / (var_sobol * t_sobol)}
 
+    # The same slope in float64: a float32 mean of ~π/2 cannot resolve errors below ~1e-7, which
+    # flattens the float32 curve from n = 2^16 on; float64 shows the points' own rate.
+    with jax.enable_x64(True):
+        for name, sampler in (("malley", cosine), ("inversion", inversion)):
+            rmse64 = {}
+            for log_n in range(10, 21, 2):
+                n = 1 << log_n
+                est = jax.jit(lambda k, n=n: estimate(cos3, sampler, k, 64 * n, uniforms=U.Sobol(64)))(next(keys))
+                rmse64[log_n] = float(est.stderr) * 8.0
+            slope64 = np.polyfit(logs * np.log(2), np.log([rmse64[k] for k in logs]), 1)[0]
+            results["sobol"][f"rmse_slope_float64_{name}"] = slope64
+            results["sobol"][f"rmse_float64_{name}"] = rmse64
+
     small, large = peak_rss_mib(1 << 20), peak_rss_mib(1 << 30)
     results["memory"] = {"peak_rss_mib_2^20": small, "peak_rss_mib_2^30": large, "growth_mib": large - small}
     print(json.dumps(results, indent=2))
