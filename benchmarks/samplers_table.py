@@ -73,10 +73,12 @@ def _z(mean, stderr, exact) -> float:
     return float((mean - exact) / scale) if scale > 0 else 0.0
 
 
-def sampler_table(n: int = 1 << 20, progress=print, timing_n: int = 1 << 20) -> list[dict]:
+def sampler_table(n: int = 1 << 20, progress=print, timing_n: int = 1 << 20, only=None) -> list[dict]:
+    """Rows for every case, or for the names in `only`."""
     rows = []
-    keys = jax.random.split(jax.random.key(0), len(cases()))
-    for key, (name, sampler, f, exact, what) in zip(keys, cases()):
+    chosen = [c for c in cases() if only is None or c[0] in only]
+    keys = jax.random.split(jax.random.key(0), len(chosen))
+    for key, (name, sampler, f, exact, what) in zip(keys, chosen):
         progress(f"[samplers] {name}")
         est = jax.jit(lambda k: js.estimate(f, sampler, k, n))(key)
         rows.append({"sampler": name, "normalization_error": testing.normalization(sampler) - 1.0,
