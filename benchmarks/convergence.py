@@ -162,16 +162,6 @@ def _prefix_means(y: np.ndarray, ns: list[int]) -> np.ndarray:
     return np.array([csum[n - 1] / n for n in ns])
 
 
-def median_time(fn, *args, repeats=3):
-    jax.block_until_ready(fn(*args))
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
 def _timed_estimate(strategy: Strategy, f, n_time: int) -> float:
     if strategy.heuristic is None:
         run = jax.jit(lambda key: js.estimate(f, strategy.sampler, key, n_time,
