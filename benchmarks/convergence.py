@@ -25,8 +25,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import statistics
-import time
 from typing import Callable
 
 import jax
@@ -35,6 +33,7 @@ import numpy as np
 
 import jaxsample as js
 from jaxsample import uniforms as U
+from timing import median_seconds
 
 COS30 = float(np.cos(np.pi / 6))
 CAP_AXIS = np.array([0.5, 0.0, 1.0]) / np.linalg.norm([0.5, 0.0, 1.0])
@@ -170,14 +169,7 @@ def _timed_estimate(strategy: Strategy, f, n_time: int) -> float:
         run = jax.jit(lambda key: js.estimate_mis(f, list(strategy.sampler), key,
                                                   [n_time // 2, n_time // 2],
                                                   heuristic=strategy.heuristic).mean)
-    keys = jax.random.split(jax.random.key(99), 4)
-    jax.block_until_ready(run(keys[0]))
-    times = []
-    for k in keys[1:]:
-        start = time.perf_counter()
-        jax.block_until_ready(run(k))
-        times.append(time.perf_counter() - start)
-    return statistics.median(times) / n_time
+    return median_seconds(run, jax.random.key(99), repeats=3) / n_time
 
 
 def study_one(strategy: Strategy, integrand: Integrand, ns: list[int], n_keys: int, n_time: int,

@@ -8,8 +8,6 @@ n = 2^20, median of 5 after a warm-up.
 
 from __future__ import annotations
 
-import statistics
-import time
 
 import jax
 import jax.numpy as jnp
@@ -17,6 +15,7 @@ import numpy as np
 
 import jaxsample as js
 from jaxsample import testing
+from timing import median_seconds
 
 TRI = (jnp.array([0.0, 0.0]), jnp.array([1.0, 0.0]), jnp.array([0.0, 1.0]))
 
@@ -56,14 +55,7 @@ def cases():
 
 def time_per_million(sampler, n=1 << 20, repeats=5) -> float:
     run = jax.jit(lambda key: sampler.sample_with_pdf(key, (n,)))
-    keys = jax.random.split(jax.random.key(1), repeats + 1)
-    jax.block_until_ready(run(keys[0]))
-    times = []
-    for key in keys[1:]:
-        start = time.perf_counter()
-        jax.block_until_ready(run(key))
-        times.append(time.perf_counter() - start)
-    return statistics.median(times) * 1e6 / n
+    return median_seconds(run, jax.random.key(1), repeats) * 1e6 / n
 
 
 def _z(mean, stderr, exact) -> float:
