@@ -18,7 +18,7 @@ import numpy as np
 
 import jaxsample as js
 from jaxsample import uniforms as U
-from jaxsample.estimate import estimate
+from jaxsample.estimate import estimate, run_stream
 
 N = 1 << 24
 AXIS = np.array([0.3, 0.2, 0.9327379], np.float32)
@@ -34,10 +34,11 @@ def median_time(fn, *args, repeats=5):
     return statistics.median(times)
 
 
-def numpy_estimate(n, seed=0, chunk=1 << 20, all_components=False):
-    """Straightforward vectorized NumPy float32: concentric map, Malley lift, f/p, chunked sum."""
+def numpy_estimate(n, seed=0, chunk=1 << 20, all_components=False, with_stderr=False):
+    """Straightforward vectorized NumPy float32: concentric map, Malley lift, f/p, chunked sum
+    (and, with_stderr, the sum of squares for the standard error)."""
     rng = np.random.default_rng(seed)
-    total = 0.0
+    total = squares = 0.0
     for _ in range(n // chunk):
         u = rng.random((chunk, 2), dtype=np.float32)
         a, b = 2 * u[:, 0] - 1, 2 * u[:, 1] - 1
@@ -54,8 +55,14 @@ def numpy_estimate(n, seed=0, chunk=1 << 20, all_components=False):
         else:
             f = z ** 3
         p = z / np.float32(np.pi)
-        total += float(np.sum(np.where(p > 0, f / np.where(p > 0, p, 1), 0), dtype=np.float32))
-    return total / n
+        y = np.where(p > 0, f / np.where(p > 0, p, 1), 0)
+        total += float(np.sum(y, dtype=np.float32))
+        if with_stderr:
+            squares += float(np.dot(y, y))
+    mean = total / n
+    if with_stderr:
+        return mean, np.sqrt(max(squares / n - mean * mean, 0.0) / (n - 1))
+    return mean
 
 
 def cos3(w):
@@ -68,22 +75,24 @@ def tilted(w):
     return jnp.maximum(w[0] * AXIS[0] + w[1] * AXIS[1] + w[2] * AXIS[2], 0.0) ** 3
 
 
-def generate_and_sum(n, chunk=1 << 16):
+def uniform_floor(n, full: bool):
+    """Generating and summing the same uniforms with the same source, through the same engine
+    (chunking, materialization, accumulation): the warp and integrand replaced by u0 + u1."""
     def run(key):
-        seed = U.seed_from_key(key)
-
-        def body(total, step):
-            groups = U.Random().groups(seed, step * chunk, chunk, 2, aligned=True)
-            return total + sum(jnp.sum(g) for g in groups), None
-
-        return jax.lax.scan(body, jnp.float32(0), jnp.arange(n // chunk, dtype=jnp.uint32))[0]
+        est = run_stream(lambda u: u[:, 0] + u[:, 1], 2, key, n)
+        return everything(est) if full else est.mean
 
     return jax.jit(run)
 
 
+def everything(est):
+    """What a user of the whole Estimate pays for: mean, standard error and both diagnostics."""
+    return est.mean, est.stderr, est.ess, est.max_abs
+
+
 MEMORY_CHILD = """
 import resource, sys, jax, jaxsample as js
-from jaxsample.estimate import estimate
+from jaxsample.estimate import estimate, run_stream
 n = int(sys.argv[1])
 f = jax.jit(lambda k: estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), k, n).mean)
 print(float(f(jax.random.key(0))), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
@@ -96,17 +105,41 @@ def peak_rss_mib(n):
 
 
 def main():
-    keys = iter(jax.random.split(jax.random.key(0), 64))
+    keys = iter(jax.random.split(jax.random.key(0), 256))
     results = {"n": N, "devices": jax.device_count()}
     cosine = js.CosineHemisphere()
     inversion = js.CosineHemisphere(method="inversion")
-    jax_cos3 = jax.jit(lambda k: estimate(cos3, cosine, k, N).mean)
-    t_jax = median_time(jax_cos3, next(keys))
-    t_gen = median_time(generate_and_sum(N), next(keys))
+    # Medians of 7, the four variants interleaved so that a burst of load on this shared machine
+    # hits them alike; NumPy (about 10x slower) gets 3.
+    variants = {
+        "mean": jax.jit(lambda k: estimate(cos3, cosine, k, N).mean),
+        "full": jax.jit(lambda k: everything(estimate(cos3, cosine, k, N))),
+        "mean_stderr": jax.jit(lambda k: (lambda e: (e.mean, e.stderr))(estimate(cos3, cosine, k, N))),
+        "floor_mean": uniform_floor(N, full=False),
+        "floor_full": uniform_floor(N, full=True),
+    }
+    times = {name: [] for name in variants}
+    for fn in variants.values():
+        jax.block_until_ready(fn(next(keys)))
+    for _ in range(7):
+        for name, fn in variants.items():
+            start = time.perf_counter()
+            jax.block_until_ready(fn(next(keys)))
+            times[name].append(time.perf_counter() - start)
+    t = {name: statistics.median(v) for name, v in times.items()}
     t_np = median_time(numpy_estimate, N, repeats=3)
-    results["cos3"] = {"jax_s": t_jax, "numpy_s": t_np, "uniforms_only_s": t_gen,
-                       "speedup_vs_numpy": t_np / t_jax, "time_vs_uniforms_only": t_jax / t_gen,
-                       "jax_Msamples_per_s": N / t_jax / 1e6, "numpy_Msamples_per_s": N / t_np / 1e6}
+    t_np_stderr = median_time(lambda: numpy_estimate(N, with_stderr=True), repeats=3)
+    results["cos3"] = {
+        "jax_mean_stderr_s": t["mean_stderr"], "numpy_mean_stderr_s": t_np_stderr,
+        "speedup_vs_numpy_mean_and_stderr": t_np_stderr / t["mean_stderr"],
+        "jax_mean_only_s": t["mean"], "jax_full_estimate_s": t["full"], "numpy_s": t_np,
+        "uniforms_only_mean_s": t["floor_mean"], "uniforms_only_full_s": t["floor_full"],
+        "speedup_vs_numpy": t_np / t["mean"],
+        "speedup_vs_numpy_full_estimate": t_np / t["full"],
+        "time_vs_uniforms_only": t["mean"] / t["floor_mean"],
+        "time_vs_uniforms_only_full_estimate": t["full"] / t["floor_full"],
+        "jax_Msamples_per_s": N / t["mean"] / 1e6, "numpy_Msamples_per_s": N / t_np / 1e6}
+    t_gen = t["floor_mean"]
     t_tilt_malley = median_time(jax.jit(lambda k: estimate(tilted, cosine, k, N).mean), next(keys))
     t_tilt_inv = median_time(jax.jit(lambda k: estimate(tilted, inversion, k, N).mean), next(keys))
     t_np_tilt = median_time(lambda: numpy_estimate(N, all_components=True), repeats=3)
