@@ -22,6 +22,14 @@ class CosineHemisphere(Sampler):
 
     `method="inversion"`: the marginal of cos θ has CDF 1 - cos²θ, so cos θ = sqrt(1 - u₀),
     sin θ = sqrt(u₀), φ = 2πu₁ (Chuang's notes; the seed derivation). sin² θ = u₀ exactly.
+
+    Which map for quasi-Monte Carlo: the concentric map is continuous but has kinks along the
+    square's diagonals, and an integrand that is smooth on the hemisphere picks them up (∫cos³ is
+    π(1 - max(a², b²)) in the map's coordinates a, b). Scrambled Sobol' points then converge at
+    about n^-1.2 instead of n^-1.5; with "inversion" the same integrand is π(1 - u₀) and reaches
+    n^-1.45 (RMSE slopes over n = 2^10..2^20, 64 scrambles: `python benchmarks/bench_estimator.py`).
+    For Sobol' points and smooth integrands prefer "inversion"; for independent points the two
+    maps have the same variance.
     """
 
     method: str = "malley"

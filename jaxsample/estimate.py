@@ -13,7 +13,14 @@ Accumulation, and why it is careful: within a chunk the sums are taken in a tree
 `_BLOCK` values (error ~ (log n) ε rather than n ε); across chunks the running sums are
 compensated (Neumaier's variant of Kahan summation), and the sum of squared deviations M2 is
 merged by Chan, Golub & LeVeque's pairwise update M2 = M2_a + M2_b + δ² n_a n_b / n (Chan et al.
-1979). For a constant integrand every chunk sum is exact and so is the mean, for any n.
+1979). For a constant integrand every chunk sum is exact and so is the mean, for any n. With
+replicates (Sobol', stratified) the per-replicate sums are kept in double-float (hi + lo,
+`jaxsample.doublefloat`), and every mean is divided in double-float before it is rounded: the
+stderr is the spread of the replicate means, which for Sobol' points drops below a float32 ulp of
+the mean (it came out as 0 when the means were rounded first).
+
+Speed: the g points a generator call yields (two 2-d points per Philox block) are evaluated in
+one fused loop and stored once per chunk (`_materialize`), so the generator runs once per block.
 
 Standard error: with independent points (the "random" source) it is sqrt(s²/n), s² the sample
 variance of Y. With R > 1 replicates (stratified, Sobol'), points within a replicate are
@@ -37,6 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._base import check_choice, default_float_dtype, pytree_dataclass
+from . import doublefloat
 from .numerics import safe_div, safe_sqrt
 from .uniforms import Source, as_source, seed_from_key
 
@@ -142,15 +150,19 @@ def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int) -> _Moments:
     first = groups[0]
     count = first.shape[0] * len(groups)
     if replicates > 1:
-        per_replicate = tree_sum(first.reshape((count // replicates, replicates) + first.shape[1:]))
+        # Replicate means are compared with each other (their spread is the stderr), so they are
+        # summed in double-float: see jaxsample.doublefloat.
+        per_replicate, low = doublefloat.sum_axis0(
+            first.reshape((count // replicates, replicates) + first.shape[1:]))
     else:
         per_replicate = tree_sum(sum(groups))[None]
+        low = jnp.zeros_like(per_replicate)
     chunk_mean = per_replicate.sum(axis=0) / count
     m2 = tree_sum(sum((y - chunk_mean) * (y - chunk_mean) for y in groups))
     max_abs = functools.reduce(jnp.maximum, [jnp.max(jnp.abs(y), axis=0) for y in groups])
     return _Moments(
         sums=per_replicate,
-        compensation=jnp.zeros_like(per_replicate),
+        compensation=low,
         m2=m2,
         max_abs=max_abs,
         sum_abs=tree_sum(sum(jnp.abs(y) for y in groups)),
@@ -176,27 +188,20 @@ def _empty_moments(replicates: int, out_shape, dtype) -> _Moments:
     return _Moments(zeros, zeros, scalar, scalar, scalar, jnp.zeros((), dtype))
 
 
-def _pairwise_mean(values: jax.Array) -> jax.Array:
-    """Mean over axis 0 by repeated halving: ~log2(R) roundings instead of R (a plain float32 sum
-    of 64 replicate means of ~1.6 loses ~2e-7 relative, which floored the Sobol' RMSE)."""
-    count = values.shape[0]
-    while values.shape[0] > 1:
-        if values.shape[0] % 2:
-            values = jnp.concatenate([values, jnp.zeros_like(values[:1])])
-        values = values[0::2] + values[1::2]
-    return values[0] / count
-
-
 def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
-    per_replicate = n // replicates
-    # Divide before adding: sums and their compensations are kept apart until each is O(mean).
-    replicate_means = m.sums / per_replicate + m.compensation / per_replicate
-    mean = _pairwise_mean(replicate_means)
+    # Every mean is formed in double-float (sums and compensations as hi + lo), divided before
+    # it is rounded; with replicates the spread is taken from the hi + lo means, whose differences
+    # are far below a float32 ulp of the mean once Sobol' points converge.
+    replicate_hi, replicate_lo = doublefloat.divide_by_int((m.sums, m.compensation), n // replicates)
+    total = doublefloat.sum_axis0(replicate_hi, leaf=1)
+    mean_hi, mean_lo = doublefloat.divide_by_int(
+        (total[0], total[1] + jnp.sum(replicate_lo, axis=0)), replicates)
+    mean = mean_hi + mean_lo
     variance = m.m2 / max(n - 1, 1)
     if replicates == 1:
         stderr = safe_sqrt(variance / n)
     else:
-        spread = replicate_means - mean
+        spread = (replicate_hi - mean_hi) + (replicate_lo - mean_lo)
         stderr = safe_sqrt(jnp.sum(spread * spread, axis=0) / (replicates - 1) / replicates)
     sum_squares = m.m2 + n * mean * mean
     ess = safe_div(m.sum_abs * m.sum_abs, sum_squares)
@@ -304,12 +309,14 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
         m = _stream(values_fn, source, seed, dims, dtype, base, per_device, n, chunk_size,
                     out_shape, per_device % 4 == 0)
         # Combine devices: compensated sums are added, M2 merged about the global mean.
-        sums = jax.lax.psum(m.sums + m.compensation, axes)
+        # The per-replicate sums are gathered and added in double-float (a psum would round them).
+        sums, low = doublefloat.sum_axis0(jax.lax.all_gather(m.sums, axes), leaf=1)
+        low = low + jnp.sum(jax.lax.all_gather(m.compensation, axes), axis=0)
         local_mean = jnp.sum(m.sums + m.compensation, axis=0) / per_device
-        global_mean = jnp.sum(sums, axis=0) / n
+        global_mean = jnp.sum(sums + low, axis=0) / n
         shift = local_mean - global_mean
         m2 = jax.lax.psum(m.m2 + per_device * shift * shift, axes)
-        return _Moments(sums, jnp.zeros_like(sums), m2, jax.lax.pmax(m.max_abs, axes),
+        return _Moments(sums, low, m2, jax.lax.pmax(m.max_abs, axes),
                         jax.lax.psum(m.sum_abs, axes), jnp.asarray(n, dtype))
 
     from jax.sharding import PartitionSpec
