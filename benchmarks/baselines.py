@@ -16,8 +16,7 @@ import jax
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import jaxsample as js  # noqa: E402
-from jaxsample.estimate import run_stream  # noqa: E402
-from bench_estimator import cos3, median_time, numpy_estimate  # noqa: E402
+from bench_estimator import cos3, median_time, numpy_estimate, uniform_floor  # noqa: E402
 
 
 def baseline_table(quick: bool = True, progress=print) -> dict:
@@ -27,8 +26,7 @@ def baseline_table(quick: bool = True, progress=print) -> dict:
     t_jax = median_time(jax.jit(lambda k: js.estimate(cos3, js.CosineHemisphere(), k, n).mean), next(keys))
     # The floor: the same engine, source, chunking and accumulation, with the warp and integrand
     # replaced by the plain sum of the two uniforms of each sample.
-    floor = jax.jit(lambda k: run_stream(lambda u: u[:, 0] + u[:, 1], 2, k, n).mean)
-    t_floor = median_time(floor, next(keys))
+    t_floor = median_time(uniform_floor(n, full=False), next(keys))
     t_numpy = median_time(numpy_estimate, n, repeats=3)
     return {"n": n, "jaxsample_s": t_jax, "uniform_floor_s": t_floor, "numpy_s": t_numpy,
             "jaxsample_M_per_s": n / t_jax / 1e6, "numpy_M_per_s": n / t_numpy / 1e6,

@@ -11,7 +11,7 @@ rounding between chunkings and shardings.
 
 Accumulation, and why it is careful: within a chunk the sums are taken in a tree of blocks of
 `_BLOCK` values (error ~ (log n) ε rather than n ε); across chunks the running sums are
-compensated (Neumaier's variant of Kahan summation), and the sum of squared deviations M2 is
+compensated (TwoSum: the rounding error of each addition is kept), and the sum of squared deviations M2 is
 merged by Chan, Golub & LeVeque's pairwise update M2 = M2_a + M2_b + δ² n_a n_b / n (Chan et al.
 1979). For a constant integrand every chunk sum is exact and so is the mean, for any n. With
 replicates (Sobol', stratified) the per-replicate sums are kept in double-float (hi + lo,
@@ -128,18 +128,11 @@ class _Moments:
     """Running statistics of a stream: per-replicate compensated sums, M2, max |Y|, Σ|Y|, count."""
 
     sums: jax.Array          # (R, *out): Σ Y per replicate (high part)
-    compensation: jax.Array  # (R, *out): the low part lost by the additions (Neumaier)
+    compensation: jax.Array  # (R, *out): the low part lost by the additions (TwoSum)
     m2: jax.Array            # (*out): Σ (Y - mean)²
     max_abs: jax.Array
     sum_abs: jax.Array
     count: jax.Array         # float: exact for the chunk multiples we use
-
-
-def _neumaier_add(total, compensation, value):
-    new_total = total + value
-    lost = jnp.where(jnp.abs(total) >= jnp.abs(value),
-                     (total - new_total) + value, (value - new_total) + total)
-    return new_total, compensation + lost
 
 
 def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int) -> _Moments:
@@ -177,7 +170,8 @@ def _merge(a: _Moments, b: _Moments) -> _Moments:
     mean_b = jnp.sum(b.sums + b.compensation, axis=0) / b.count
     delta = mean_b - mean_a
     m2 = a.m2 + b.m2 + delta * delta * (a.count * b.count / count)
-    sums, compensation = _neumaier_add(a.sums, a.compensation + b.compensation, b.sums)
+    sums, lost = doublefloat.two_sum(a.sums, b.sums)
+    compensation = a.compensation + b.compensation + lost
     return _Moments(sums, compensation, m2, jnp.maximum(a.max_abs, b.max_abs),
                     a.sum_abs + b.sum_abs, count)
 
