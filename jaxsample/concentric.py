@@ -32,7 +32,8 @@ def square_to_disk(u):
     # turn fraction with a short polynomial in float32, much cheaper than XLA's sin and cos.
     turns = jnp.where(a_wins, 0.125 * (b / a_safe), 0.25 - 0.125 * (a / b_safe))
     sin_phi, cos_phi = sincos_2pi(turns)
-    return radius * cos_phi, radius * sin_phi, jnp.abs(radius)
+    # |radius| is max(|a|, |b|): written so, an integrand of r alone needs neither branch's select.
+    return radius * cos_phi, radius * sin_phi, jnp.maximum(jnp.abs(a), jnp.abs(b))
 
 
 def disk_to_square(x, y):

@@ -55,6 +55,11 @@ class CosineHemisphere(Sampler):
     def pdf(self, x):
         return jnp.maximum(x[..., 2], 0.0) * INV_PI
 
+    def warp_with_pdf(self, u):
+        # Both maps give z = cos θ >= 0 (a safe_sqrt), so the density needs no clamp.
+        x = self.warp(u)
+        return x, x[..., 2] * INV_PI
+
     def inverse(self, x):
         if self.method == "inversion":
             sin2 = x[..., 0] ** 2 + x[..., 1] ** 2

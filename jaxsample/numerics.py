@@ -33,11 +33,22 @@ def clamp_unit_interval(u: jax.Array) -> jax.Array:
     return jnp.clip(u, 0.0, one_minus_epsilon(u.dtype))
 
 
+@jax.custom_jvp
 def safe_sqrt(x: jax.Array) -> jax.Array:
-    """sqrt(max(x, 0)); derivative 1/(2 sqrt x) for x > 0 and 0 for x <= 0 (never NaN or inf)."""
+    """sqrt(max(x, 0)); derivative 1/(2 sqrt x) for x > 0 and 0 for x <= 0 (never NaN or inf).
+
+    A custom JVP rather than a double where: the value needs no guard (sqrt(0) = 0), only the
+    derivative does, so the forward pass, which every sampler runs, is one max and one sqrt.
+    """
+    return jnp.sqrt(jnp.maximum(x, 0.0))
+
+
+@safe_sqrt.defjvp
+def _safe_sqrt_jvp(primals, tangents):
+    (x,), (dx,) = primals, tangents
+    root = safe_sqrt(x)
     positive = x > 0
-    x_safe = jnp.where(positive, x, 1.0)
-    return jnp.where(positive, jnp.sqrt(x_safe), 0.0)
+    return root, jnp.where(positive, 0.5 * dx / jnp.where(positive, root, 1.0), 0.0)
 
 
 def safe_acos(x: jax.Array) -> jax.Array:
@@ -63,11 +74,26 @@ def safe_log(x: jax.Array) -> jax.Array:
     return jnp.where(positive, jnp.log(x_safe), -jnp.inf)
 
 
+@jax.custom_jvp
 def safe_div(numerator: jax.Array, denominator: jax.Array) -> jax.Array:
-    """numerator / denominator, and 0 where the denominator is 0 (the f/p = 0 where p = 0 rule)."""
+    """numerator / denominator, and 0 where the denominator is 0 (the f/p = 0 where p = 0 rule).
+
+    The derivative is that of the quotient where the denominator is nonzero and 0 where it is 0.
+    A custom JVP: the value needs one select (x/0 is only discarded, and IEEE division by zero is
+    harmless), the derivative the double where; the estimator's inner loop runs the value.
+    """
+    return jnp.where(denominator != 0, numerator / denominator, 0.0)
+
+
+@safe_div.defjvp
+def _safe_div_jvp(primals, tangents):
+    (numerator, denominator), (d_numerator, d_denominator) = primals, tangents
+    quotient = safe_div(numerator, denominator)
+    # Double where here: reverse mode transposes this tangent, dividing the cotangent by the
+    # denominator, and the guard must come before that division.
     nonzero = denominator != 0
     denominator_safe = jnp.where(nonzero, denominator, 1.0)
-    return jnp.where(nonzero, numerator / denominator_safe, 0.0)
+    return quotient, jnp.where(nonzero, (d_numerator - quotient * d_denominator) / denominator_safe, 0.0)
 
 
 def safe_pow(base: jax.Array, exponent: jax.Array) -> jax.Array:
