@@ -36,6 +36,31 @@ def pytree_dataclass(cls=None, *, static: tuple[str, ...] = ()):
     return wrap if cls is None else wrap(cls)
 
 
+def pytree_attributes(leaves: tuple[str, ...], static: tuple[str, ...] = ()):
+    """Register a class with its own `__init__` as a pytree: the attributes named in `leaves` are
+    its leaves, those in `static` its metadata (hashable; a change recompiles).
+
+    For samplers whose constructor checks its arguments and builds tables, which a dataclass
+    cannot express. Unflattening bypasses `__init__`: JAX rebuilds the object from leaves that
+    may be tracers or placeholders, and the checks and tables were done when it was first made.
+    """
+
+    def wrap(cls):
+        def flatten(obj):
+            return tuple(getattr(obj, n) for n in leaves), tuple(getattr(obj, n) for n in static)
+
+        def unflatten(aux, children):
+            obj = object.__new__(cls)
+            for name, value in zip(leaves + static, tuple(children) + tuple(aux)):
+                object.__setattr__(obj, name, value)
+            return obj
+
+        jax.tree_util.register_pytree_node(cls, flatten, unflatten)
+        return cls
+
+    return wrap
+
+
 def concrete_value(x: Any) -> np.ndarray | None:
     """`x` as a float64 NumPy array if it is a concrete number, else None (tracers, placeholders).
 
@@ -160,3 +185,20 @@ class Sampler:
     def sample_with_pdf(self, key: jax.Array, shape=(), dtype=None) -> tuple[jax.Array, jax.Array]:
         """(samples, their densities); the density is the one `pdf` states, computed alongside."""
         return self.warp_with_pdf(self._uniforms(key, shape, dtype))
+
+
+class WrapsSampler(Sampler):
+    """A sampler built on `self.base` (a rotation, a change of variables): it draws the base's
+    uniforms, so it has the base's uniform dimensions, periodic dimensions and invertibility."""
+
+    @property
+    def uniform_dims(self):
+        return self.base.uniform_dims
+
+    @property
+    def periodic_dims(self):
+        return self.base.periodic_dims
+
+    @property
+    def has_inverse(self):
+        return self.base.has_inverse

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, check_choice, concrete_value, default_float_dtype
+from ._base import Sampler, check_choice, concrete_value, default_float_dtype, pytree_attributes
 from .domains import DiscreteSet
 from .numerics import one_minus_epsilon
 
@@ -168,7 +168,7 @@ def build_alias_table(pmf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.clip(probability, 0.0, 1.0), alias
 
 
-@jax.tree_util.register_pytree_node_class
+@pytree_attributes(leaves=("pmf", "cdf", "alias_probability", "alias"), static=("method",))
 class Discrete(Sampler):
     """Outcome i in {0, ..., K-1} with probability p_i = w_i / Σ w (density over the counting measure).
 
@@ -209,16 +209,6 @@ class Discrete(Sampler):
             probability, alias = build_alias_table(np.asarray(concrete_value(weights)) / np.sum(concrete_value(weights)))
             self.alias_probability = jnp.asarray(probability, self.pmf.dtype)
             self.alias = jnp.asarray(alias, jnp.int32)
-
-    def tree_flatten(self):
-        return (self.pmf, self.cdf, self.alias_probability, self.alias), (self.method,)
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        obj = object.__new__(cls)
-        obj.method = aux[0]
-        obj.pmf, obj.cdf, obj.alias_probability, obj.alias = children
-        return obj
 
     def __repr__(self):
         return f"Discrete(size={self.size}, method={self.method!r})"

@@ -8,12 +8,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, concrete_value, pytree_dataclass
+from ._base import Sampler, WrapsSampler, concrete_value, pytree_dataclass
 from .frame import Frame
 
 
 @pytree_dataclass
-class Oriented(Sampler):
+class Oriented(WrapsSampler):
     """`base` rotated by the Duff et al. frame of `normal`: x = F · base.warp(u).
 
     A rotation preserves solid angle, so the density is the base density of the local direction,
@@ -40,20 +40,8 @@ class Oriented(Sampler):
         object.__setattr__(self, "frame", frame)
 
     @property
-    def uniform_dims(self):
-        return self.base.uniform_dims
-
-    @property
-    def periodic_dims(self):
-        return self.base.periodic_dims
-
-    @property
     def normal(self):
         return self.frame.z
-
-    @property
-    def has_inverse(self):
-        return self.base.has_inverse
 
     def warp(self, u):
         return self.frame.to_world(self.base.warp(u))

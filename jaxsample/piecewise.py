@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, concrete_value
+from ._base import Sampler, concrete_value, pytree_attributes
 from .discrete import as_array, check_weights, normalized_tables, select_rows_with_remainder, select_with_remainder
 from .domains import Box, Interval
 
@@ -48,7 +48,7 @@ def _cdf_before(cdf, index):
     return jnp.where(index > 0, cdf[..., jnp.maximum(index - 1, 0)], 0.0)
 
 
-@jax.tree_util.register_pytree_node_class
+@pytree_attributes(leaves=("pmf", "cdf"))
 class PiecewiseConstant1D(Sampler):
     """Density p(x) = K f_i / Σ f on bin i = [i/K, (i+1)/K) of [0, 1] (length measure), 0 outside.
 
@@ -65,15 +65,6 @@ class PiecewiseConstant1D(Sampler):
         values = as_array(values)
         check_weights("PiecewiseConstant1D", "values", values)
         self.pmf, self.cdf = normalized_tables(values)
-
-    def tree_flatten(self):
-        return (self.pmf, self.cdf), None
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        obj = object.__new__(cls)
-        obj.pmf, obj.cdf = children
-        return obj
 
     def __repr__(self):
         return f"PiecewiseConstant1D(size={self.size})"
@@ -101,7 +92,7 @@ class PiecewiseConstant1D(Sampler):
         return Interval(0.0, 1.0, breaks=np.linspace(0.0, 1.0, self.size + 1), graded=False, order=1)
 
 
-@jax.tree_util.register_pytree_node_class
+@pytree_attributes(leaves=("marginal_pmf", "marginal_cdf", "conditional_pmf", "conditional_cdf"))
 class PiecewiseConstant2D(Sampler):
     """Density p(x, y) = f[j, i] / mean(f) on [0, 1]² (area measure): row j covers y in
     [j/R, (j+1)/R), column i covers x in [i/C, (i+1)/C) for `values` of shape (R, C).
@@ -123,15 +114,6 @@ class PiecewiseConstant2D(Sampler):
         self.marginal_pmf, self.marginal_cdf = normalized_tables(
             v.sum(axis=-1) if v is not None else jnp.sum(jnp.asarray(values), axis=-1))
         self.conditional_pmf, self.conditional_cdf = normalized_tables(values)
-
-    def tree_flatten(self):
-        return (self.marginal_pmf, self.marginal_cdf, self.conditional_pmf, self.conditional_cdf), None
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        obj = object.__new__(cls)
-        obj.marginal_pmf, obj.marginal_cdf, obj.conditional_pmf, obj.conditional_cdf = children
-        return obj
 
     @property
     def shape(self) -> tuple[int, int]:

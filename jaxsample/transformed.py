@@ -8,7 +8,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from ._base import Sampler
+from ._base import Sampler, WrapsSampler, pytree_attributes
 
 
 def _map_points(fn, x, event_ndim):
@@ -19,8 +19,8 @@ def _map_points(fn, x, event_ndim):
     return out.reshape(batch + out.shape[1:])
 
 
-@jax.tree_util.register_pytree_node_class
-class Transformed(Sampler):
+@pytree_attributes(leaves=("base",), static=("forward", "backward", "support"))
+class Transformed(WrapsSampler):
     """y = T(x) with x from `base`: p_y(y) = p_x(T⁻¹(y)) / |det J_T(T⁻¹(y))|.
 
     The change-of-variables formula (Chuang, *Monte Carlo Integration*, "transformation method";
@@ -43,28 +43,6 @@ class Transformed(Sampler):
         self.forward = forward
         self.backward = inverse
         self.support = domain
-
-    def tree_flatten(self):
-        return (self.base,), (self.forward, self.backward, self.support)
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        obj = object.__new__(cls)
-        obj.base = children[0]
-        obj.forward, obj.backward, obj.support = aux
-        return obj
-
-    @property
-    def uniform_dims(self):
-        return self.base.uniform_dims
-
-    @property
-    def periodic_dims(self):
-        return self.base.periodic_dims
-
-    @property
-    def has_inverse(self):
-        return self.base.has_inverse
 
     @property
     def event_shape(self):

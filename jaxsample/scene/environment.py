@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._base import Sampler, pytree_dataclass
+from .._base import Sampler, pytree_attributes, pytree_dataclass
 from ..domains import Directions
 from ..numerics import azimuth_fraction, safe_div, spherical_direction
 from ..piecewise import PiecewiseConstant2D
@@ -34,7 +33,7 @@ def uv_from_direction(wi):
     return jnp.stack([azimuth_fraction(wi[..., 1], wi[..., 0]), t], axis=-1), sin_theta
 
 
-@jax.tree_util.register_pytree_node_class
+@pytree_attributes(leaves=("values", "distribution"))
 class EnvironmentMap:
     """Radiance L(ω) = values[row, column] of a lat–long map of shape (H, W): row j covers polar
     angles θ in [πj/H, π(j+1)/H] about the world +z axis, column i covers φ in [2πi/W, 2π(i+1)/W].
@@ -57,15 +56,6 @@ class EnvironmentMap:
         centre_sin = np.sin(np.pi * (np.arange(rows) + 0.5) / rows).astype(values.dtype)
         self.values = values
         self.distribution = PiecewiseConstant2D(values * centre_sin[:, None])
-
-    def tree_flatten(self):
-        return (self.values, self.distribution), None
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        obj = object.__new__(cls)
-        obj.values, obj.distribution = children
-        return obj
 
     def __repr__(self):
         return f"EnvironmentMap(shape={tuple(self.values.shape)})"
