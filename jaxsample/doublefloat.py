@@ -48,9 +48,11 @@ def two_prod(a: jax.Array, b: jax.Array) -> tuple[jax.Array, jax.Array]:
 
 
 def add(x: tuple[jax.Array, jax.Array], y: tuple[jax.Array, jax.Array]):
-    """(hi, lo) + (hi, lo), renormalized."""
+    """(hi, lo) + (hi, lo), renormalized. Where hi + hi is not finite (an inf or NaN term, or
+    overflow) its error term is NaN (inf - inf); hi is then that plain IEEE sum, not NaN."""
     s, e = two_sum(x[0], y[0])
-    return two_sum(s, e + x[1] + y[1])
+    hi, lo = two_sum(s, e + x[1] + y[1])
+    return jnp.where(jnp.isfinite(s), hi, s), lo
 
 
 def sum_axis0(values: jax.Array, leaf: int = 4) -> tuple[jax.Array, jax.Array]:

@@ -66,6 +66,11 @@ class Estimate:
     - `max_abs`: the largest |Y| seen, a check for heavy tails (a few samples dominating).
     - `ess`: effective sample size (Σ|Y|)² / Σ Y², n for constant Y; small values warn that the
       variance, and so the stderr, may be unreliable (Kong 1992; Owen 2013, ch. 9).
+
+    If some Y = f/p is not finite (f returned ±inf or NaN, or the float sum overflowed), `mean` is
+    what IEEE arithmetic gives for the plain sum (±inf; NaN for a NaN or for infinities of both
+    signs), `stderr` and `variance` are inf, `ess` is 0 and `max_abs` is inf or NaN: under jit the
+    estimator cannot raise, so test `jnp.isfinite(est.stderr)`.
     - `n`, `replicates`: static.
     """
 
@@ -190,7 +195,12 @@ def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
     total = doublefloat.sum_axis0(replicate_hi, leaf=1)
     mean_hi, mean_lo = doublefloat.divide_by_int(
         (total[0], total[1] + jnp.sum(replicate_lo, axis=0)), replicates)
-    mean = mean_hi + mean_lo
+    # A non-finite Y (f returned ±inf or NaN, or the sum overflowed) makes the compensation
+    # inf - inf = NaN; the plain sum of the high parts is then the IEEE verdict (±inf, or NaN
+    # for a NaN value or infinities of both signs), and the error bars are unbounded.
+    plain_total = jnp.sum(m.sums, axis=0)
+    finite = jnp.isfinite(plain_total)
+    mean = jnp.where(finite, mean_hi + mean_lo, plain_total / n)
     variance = m.m2 / max(n - 1, 1)
     if replicates == 1:
         stderr = safe_sqrt(variance / n)
@@ -198,7 +208,9 @@ def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
         spread = (replicate_hi - mean_hi) + (replicate_lo - mean_lo)
         stderr = safe_sqrt(jnp.sum(spread * spread, axis=0) / (replicates - 1) / replicates)
     sum_squares = m.m2 + n * mean * mean
-    ess = safe_div(m.sum_abs * m.sum_abs, sum_squares)
+    ess = jnp.where(finite, safe_div(m.sum_abs * m.sum_abs, sum_squares), 0.0)
+    variance = jnp.where(finite, variance, jnp.inf)
+    stderr = jnp.where(finite, stderr, jnp.inf)
     return Estimate(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
                     n=n, replicates=replicates)
 

@@ -200,6 +200,26 @@ def test_estimate_is_a_pytree_and_vector_valued_f_works():
     assert np.all(np.abs(np.asarray(e.mean) - [0, 0, np.pi]) <= 6 * np.asarray(e.stderr) + 1e-6)
 
 
+@pytest.mark.parametrize("uniforms", ["random", "sobol"])
+def test_non_finite_values_give_inf_or_nan_means_and_unbounded_error_bars(uniforms):
+    # Y = f/p per component: +inf on the cap z > 0.9, else 1 | +inf there and -inf below z < 0.1 |
+    # NaN on the cap | 1 everywhere. The compensated sums used to turn an inf into NaN (inf - inf).
+    def f(w):
+        cap, rim = w[2] > 0.9, w[2] < 0.1
+        y = jnp.stack([jnp.where(cap, jnp.inf, 1.0), jnp.where(cap, jnp.inf, jnp.where(rim, -jnp.inf, 1.0)),
+                       jnp.where(cap, jnp.nan, 1.0), jnp.ones_like(w[2])])
+        return y * w[2] / np.pi
+
+    e = jax.jit(lambda k: estimate(f, js.CosineHemisphere(), k, 1 << 12, uniforms=uniforms,
+                                   chunk_size=1 << 10))(jax.random.key(11))
+    mean, stderr = np.asarray(e.mean), np.asarray(e.stderr)
+    assert mean[0] == np.inf and np.isnan(mean[1]) and np.isnan(mean[2])
+    np.testing.assert_allclose(mean[3], 1.0, rtol=1e-6)
+    assert np.all(stderr[:3] == np.inf) and np.all(np.asarray(e.variance)[:3] == np.inf)
+    assert np.all(np.asarray(e.ess)[:3] == 0) and np.asarray(e.max_abs)[0] == np.inf
+    assert np.isfinite(stderr[3]) and np.asarray(e.ess)[3] > 0
+
+
 def test_float64():
     with jax.enable_x64(True):
         e = jax.jit(lambda k: estimate(cos3, js.CosineHemisphere(), k, 1 << 14, dtype=jnp.float64))(next(KEYS))
