@@ -9,10 +9,15 @@ issue's 12x target compares), the mean with its standard error, and the whole Es
 stderr, ESS and max |Y|) against NumPy's mean alone. Under jit a user pays only for the fields
 they read. The uniform floor is the same engine summing the uniforms (no warp, no integrand).
 Sobol' rates are measured for both maps of CosineHemisphere, in float32 and float64.
+
+The throughput figures are taken twice: with XLA's default 256-bit CPU vectors, and (on a CPU with
+AVX-512) in a child process with XLA_FLAGS=--xla_cpu_prefer_vector_width=512, a setting a user
+chooses for their whole process (the library sets no XLA flags). A breakdown then times the
+floor with the warp's arithmetic added, then its square root, then the division f/p.
 """
 
 import json
-import resource
+import os
 import statistics
 import subprocess
 import sys
@@ -110,13 +115,15 @@ def peak_rss_mib(n):
     return int(out.stdout.split()[-1]) / 1024.0
 
 
-def main():
-    keys = iter(jax.random.split(jax.random.key(0), 256))
-    results = {"n": N, "devices": jax.device_count()}
-    cosine = js.CosineHemisphere()
-    inversion = js.CosineHemisphere(method="inversion")
-    # Medians of 7, the four variants interleaved so that a burst of load on this shared machine
-    # hits them alike; NumPy (about 10x slower) gets 3.
+WIDE_VECTORS = "--xla_cpu_prefer_vector_width=512"
+
+
+def throughput(keys, cosine):
+    """Seconds for the estimator and its uniform floor, and the ratios the issue's targets name.
+
+    Medians of 7, the five variants interleaved so that a burst of load on this shared machine
+    hits them alike; NumPy (about 10x slower) gets 3.
+    """
     variants = {
         "mean": jax.jit(lambda k: estimate(cos3, cosine, k, N).mean),
         "full": jax.jit(lambda k: everything(estimate(cos3, cosine, k, N))),
@@ -135,7 +142,7 @@ def main():
     t = {name: statistics.median(v) for name, v in times.items()}
     t_np = median_time(numpy_estimate, N, repeats=3)
     t_np_stderr = median_time(lambda: numpy_estimate(N, with_stderr=True), repeats=3)
-    results["cos3"] = {
+    return {
         "jax_mean_stderr_s": t["mean_stderr"], "numpy_mean_stderr_s": t_np_stderr,
         "speedup_vs_numpy_mean_and_stderr": t_np_stderr / t["mean_stderr"],
         "jax_mean_only_s": t["mean"], "jax_full_estimate_s": t["full"], "numpy_s": t_np,
@@ -145,7 +152,70 @@ def main():
         "time_vs_uniforms_only": t["mean"] / t["floor_mean"],
         "time_vs_uniforms_only_full_estimate": t["full"] / t["floor_full"],
         "jax_Msamples_per_s": N / t["mean"] / 1e6, "numpy_Msamples_per_s": N / t_np / 1e6}
-    t_gen = t["floor_mean"]
+
+
+def _disk_radius_term(u):
+    """1 - r² of the concentric map's radius r = max(|2u₀ - 1|, |2u₁ - 1|): Malley's z² for ∫cos³."""
+    r = jnp.maximum(jnp.abs(2.0 * u[:, 0] - 1.0), jnp.abs(2.0 * u[:, 1] - 1.0))
+    return (1.0 - r) * (1.0 + r)
+
+
+def breakdown(keys):
+    """Where the time above the uniform floor goes: the same engine and uniforms with the warp's
+    arithmetic but neither square root nor division (π z²), then with the square root
+    (π z, z = sqrt(z²)), then with both, as ∫cos³ needs them (z³ / (z/π)). Medians of 7, interleaved."""
+    pi = np.float32(np.pi)
+    stages = {
+        "floor": lambda u: u[:, 0] + u[:, 1],
+        "warp_arithmetic": lambda u: pi * _disk_radius_term(u),
+        "plus_sqrt": lambda u: pi * jnp.sqrt(_disk_radius_term(u)),
+        "plus_sqrt_and_divide": lambda u: (lambda z: z * z * z / (z / pi))(jnp.sqrt(_disk_radius_term(u))),
+    }
+    fns = {name: jax.jit(lambda k, f=f: run_stream(f, 2, k, N).mean) for name, f in stages.items()}
+    times = {name: [] for name in fns}
+    for fn in fns.values():
+        jax.block_until_ready(fn(next(keys)))
+    for _ in range(7):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            jax.block_until_ready(fn(next(keys)))
+            times[name].append(time.perf_counter() - start)
+    t = {name: statistics.median(v) for name, v in times.items()}
+    return {f"{name}_vs_floor": t[name] / t["floor"] for name in fns if name != "floor"} | {"floor_s": t["floor"]}
+
+
+def has_avx512() -> bool:
+    try:
+        with open("/proc/cpuinfo") as cpuinfo:
+            return " avx512f" in cpuinfo.read()
+    except OSError:
+        return False
+
+
+def wide_vector_throughput():
+    """`throughput` again in a child process whose XLA emits 512-bit vectors (a flag a user sets;
+    XLA's CPU default is 256). None where the CPU has no AVX-512."""
+    if not has_avx512():
+        return None
+    env = dict(os.environ, XLA_FLAGS=(os.environ.get("XLA_FLAGS", "") + " " + WIDE_VECTORS).strip())
+    out = subprocess.run([sys.executable, __file__, "--throughput-only"], env=env, capture_output=True,
+                         text=True, check=True)
+    return dict(json.loads(out.stdout), xla_flags=env["XLA_FLAGS"])
+
+
+def main():
+    if "--throughput-only" in sys.argv:
+        keys = iter(jax.random.split(jax.random.key(0), 64))
+        print(json.dumps(throughput(keys, js.CosineHemisphere())))
+        return
+    keys = iter(jax.random.split(jax.random.key(0), 256))
+    results = {"n": N, "devices": jax.device_count()}
+    cosine = js.CosineHemisphere()
+    inversion = js.CosineHemisphere(method="inversion")
+    results["cos3"] = throughput(keys, cosine)
+    results["cos3_512bit_vectors"] = wide_vector_throughput()
+    results["cos3_time_above_floor"] = breakdown(keys)
+    t_gen = results["cos3"]["uniforms_only_mean_s"]
     t_tilt_malley = median_time(jax.jit(lambda k: estimate(tilted, cosine, k, N).mean), next(keys))
     t_tilt_inv = median_time(jax.jit(lambda k: estimate(tilted, inversion, k, N).mean), next(keys))
     t_np_tilt = median_time(lambda: numpy_estimate(N, all_components=True), repeats=3)
