@@ -66,12 +66,12 @@ class Estimate:
     - `max_abs`: the largest |Y| seen, a check for heavy tails (a few samples dominating).
     - `ess`: effective sample size (Σ|Y|)² / Σ Y², n for constant Y; small values warn that the
       variance, and so the stderr, may be unreliable (Kong 1992; Owen 2013, ch. 9).
+    - `n`, `replicates`: static.
 
-    If some Y = f/p is not finite (f returned ±inf or NaN, or the float sum overflowed), `mean` is
+    If some Y = f/p is not finite (f returned ±inf or NaN, or a float sum overflowed), `mean` is
     what IEEE arithmetic gives for the plain sum (±inf; NaN for a NaN or for infinities of both
     signs), `stderr` and `variance` are inf, `ess` is 0 and `max_abs` is inf or NaN: under jit the
     estimator cannot raise, so test `jnp.isfinite(est.stderr)`.
-    - `n`, `replicates`: static.
     """
 
     mean: jax.Array
@@ -199,7 +199,7 @@ def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
     # inf - inf = NaN; the plain sum of the high parts is then the IEEE verdict (±inf, or NaN
     # for a NaN value or infinities of both signs), and the error bars are unbounded.
     plain_total = jnp.sum(m.sums, axis=0)
-    finite = jnp.isfinite(plain_total)
+    finite = jnp.all(jnp.isfinite(m.sums), axis=0)
     mean = jnp.where(finite, mean_hi + mean_lo, plain_total / n)
     variance = m.m2 / max(n - 1, 1)
     if replicates == 1:

@@ -1,10 +1,11 @@
 """Layer 1: elementary functions that stay finite, in value *and* derivative, at domain edges.
 
 Every function here follows one rule: where the mathematical value is finite, so is the value we
-return and so are its forward- and reverse-mode derivatives. The technique is the "double where":
-the argument is replaced by a harmless value *before* the singular operation on the lanes that
-would be singular, and the result is selected *after*. A single `where` is not enough, because
+return and so are its forward- and reverse-mode derivatives. The usual technique is the "double
+where": the argument is replaced by a harmless value *before* the singular operation on the lanes
+that would be singular, and the result is selected *after*. A single `where` is not enough, because
 reverse mode multiplies the unselected branch's (infinite) derivative by zero, giving NaN.
+`safe_sqrt`, whose value needs no guard, instead has a custom JVP that guards only the derivative.
 
 Where a derivative is infinite at the edge itself (sqrt at 0, acos at ±1), the convention is a zero
 derivative at that one point; the functions document it.
@@ -39,6 +40,7 @@ def safe_sqrt(x: jax.Array) -> jax.Array:
 
     A custom JVP rather than a double where: the value needs no guard (sqrt(0) = 0), only the
     derivative does, so the forward pass, which every sampler runs, is one max and one sqrt.
+    A NaN argument gives NaN (the double where used to turn it into 0).
     """
     return jnp.sqrt(jnp.maximum(x, 0.0))
 
@@ -74,26 +76,15 @@ def safe_log(x: jax.Array) -> jax.Array:
     return jnp.where(positive, jnp.log(x_safe), -jnp.inf)
 
 
-@jax.custom_jvp
 def safe_div(numerator: jax.Array, denominator: jax.Array) -> jax.Array:
     """numerator / denominator, and 0 where the denominator is 0 (the f/p = 0 where p = 0 rule).
 
-    The derivative is that of the quotient where the denominator is nonzero and 0 where it is 0.
-    A custom JVP: the value needs one select (x/0 is only discarded, and IEEE division by zero is
-    harmless), the derivative the double where; the estimator's inner loop runs the value.
+    A double where, not the custom JVP of `safe_sqrt`: x/0 on a discarded lane would be
+    harmless in value, but `jax_debug_nans` would report it, sending a user hunting a NaN here.
     """
-    return jnp.where(denominator != 0, numerator / denominator, 0.0)
-
-
-@safe_div.defjvp
-def _safe_div_jvp(primals, tangents):
-    (numerator, denominator), (d_numerator, d_denominator) = primals, tangents
-    quotient = safe_div(numerator, denominator)
-    # Double where here: reverse mode transposes this tangent, dividing the cotangent by the
-    # denominator, and the guard must come before that division.
     nonzero = denominator != 0
     denominator_safe = jnp.where(nonzero, denominator, 1.0)
-    return quotient, jnp.where(nonzero, (d_numerator - quotient * d_denominator) / denominator_safe, 0.0)
+    return jnp.where(nonzero, numerator / denominator_safe, 0.0)
 
 
 def safe_pow(base: jax.Array, exponent: jax.Array) -> jax.Array:
