@@ -22,6 +22,11 @@ import numpy as np
 GAUSS_ORDER = 8
 
 
+def bin_index(edges: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Index i of the bin [edges[i], edges[i+1]) holding x; points outside go to the end bins."""
+    return np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+
+
 def gauss_legendre_panels(edges: np.ndarray, order: int = GAUSS_ORDER) -> tuple[np.ndarray, np.ndarray]:
     """Composite Gauss–Legendre nodes and weights on consecutive panels [edges[i], edges[i+1]]."""
     edges = np.unique(np.asarray(edges, dtype=np.float64))
@@ -154,7 +159,7 @@ class Directions:
 
         def assign(x):
             t, phi = self._polar(x)
-            it = np.clip(np.searchsorted(t_edges, t, side="right") - 1, 0, len(t_edges) - 2)
+            it = bin_index(t_edges, t)
             ip = np.minimum((phi / (2.0 * np.pi) * n_phi).astype(np.int64), n_phi - 1)
             return it * n_phi + ip
 
@@ -186,7 +191,7 @@ def _cell_rule(panel_edges: np.ndarray, cell_edges: np.ndarray, order: int):
     edges = np.unique(np.concatenate([panel_edges, cell_edges[np.isfinite(cell_edges)]]))
     edges = edges[(edges >= panel_edges[0]) & (edges <= panel_edges[-1])]
     nodes, weights = gauss_legendre_panels(edges, order)
-    cell = np.clip(np.searchsorted(cell_edges, nodes, side="right") - 1, 0, len(cell_edges) - 2)
+    cell = bin_index(cell_edges, nodes)
     return nodes, weights, cell
 
 
@@ -231,7 +236,7 @@ class Interval:
 
         def assign(x):
             x = np.asarray(x, np.float64)
-            index = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+            index = bin_index(edges, x)
             return np.where(self.contains(x), index, -1)
 
         return Cells(len(edges) - 1, nodes, weights, cell, assign)
@@ -288,8 +293,7 @@ class Box:
 
         def assign(x):
             x = np.asarray(x, np.float64)
-            index = [np.clip(np.searchsorted(e, x[:, k], side="right") - 1, 0, len(e) - 2)
-                     for k, e in enumerate(edges)]
+            index = [bin_index(e, x[:, k]) for k, e in enumerate(edges)]
             return np.where(self.contains(x), np.ravel_multi_index(index, counts), -1)
 
         return Cells(int(np.prod(counts)), points, weights, cell, assign)
@@ -345,13 +349,13 @@ class Disk:
         phi_edges = np.linspace(0.0, 2.0 * np.pi, n_phi + 1)
         panel_s = np.unique(np.concatenate([graded_edges(0.0, 1.0, n_geometric=24), s_edges]))
         points, weights, s, phi = self._rule(panel_s, phi_edges)
-        i_s = np.clip(np.searchsorted(s_edges, s, side="right") - 1, 0, len(s_edges) - 2)
-        i_phi = np.clip(np.searchsorted(phi_edges, phi, side="right") - 1, 0, n_phi - 1)
+        i_s = bin_index(s_edges, s)
+        i_phi = bin_index(phi_edges, phi)
         cell = (i_s[:, None] * n_phi + i_phi[None, :]).ravel()
 
         def assign(x):
             s, phi = self._polar(x)
-            i = np.clip(np.searchsorted(s_edges, s, side="right") - 1, 0, len(s_edges) - 2)
+            i = bin_index(s_edges, s)
             j = np.minimum((phi / (2.0 * np.pi) * n_phi).astype(np.int64), n_phi - 1)
             return np.where(self.contains(x), i * n_phi + j, -1)
 
@@ -448,14 +452,14 @@ class Triangle:
         base = np.linspace(0.0, 1.0, self.n_panels + 1)
         points, weights, v, w = self._rule(np.unique(np.concatenate([base, v_edges])),
                                            np.unique(np.concatenate([base, w_edges])))
-        i_v = np.clip(np.searchsorted(v_edges, v, side="right") - 1, 0, len(v_edges) - 2)
-        i_w = np.clip(np.searchsorted(w_edges, w, side="right") - 1, 0, n_w - 1)
+        i_v = bin_index(v_edges, v)
+        i_w = bin_index(w_edges, w)
         cell = (i_v[:, None] * n_w + i_w[None, :]).ravel()
 
         def assign(x):
             v, w = self._vw(x)
-            i = np.clip(np.searchsorted(v_edges, v, side="right") - 1, 0, len(v_edges) - 2)
-            j = np.clip(np.searchsorted(w_edges, w, side="right") - 1, 0, n_w - 1)
+            i = bin_index(v_edges, v)
+            j = bin_index(w_edges, w)
             return np.where(self.contains(x), i * n_w + j, -1)
 
         return Cells((len(v_edges) - 1) * n_w, points, weights, cell, assign)
