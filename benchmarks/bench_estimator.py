@@ -31,6 +31,9 @@ import jaxsample as js
 from jaxsample import uniforms as U
 from jaxsample.estimate import estimate, run_stream
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from timing import interleaved_medians  # noqa: E402
+
 N = 1 << 24
 AXIS = np.array([0.3, 0.2, 0.9327379], np.float32)
 
@@ -131,15 +134,7 @@ def throughput(keys, cosine):
         "floor_mean": uniform_floor(N, full=False),
         "floor_full": uniform_floor(N, full=True),
     }
-    times = {name: [] for name in variants}
-    for fn in variants.values():
-        jax.block_until_ready(fn(next(keys)))
-    for _ in range(7):
-        for name, fn in variants.items():
-            start = time.perf_counter()
-            jax.block_until_ready(fn(next(keys)))
-            times[name].append(time.perf_counter() - start)
-    t = {name: statistics.median(v) for name, v in times.items()}
+    t = interleaved_medians(variants, keys)
     t_np = median_time(numpy_estimate, N, repeats=3)
     t_np_stderr = median_time(lambda: numpy_estimate(N, with_stderr=True), repeats=3)
     return {
@@ -172,15 +167,7 @@ def breakdown(keys):
         "plus_sqrt_and_divide": lambda u: (lambda z: z * z * z / (z / pi))(jnp.sqrt(_disk_radius_term(u))),
     }
     fns = {name: jax.jit(lambda k, f=f: run_stream(f, 2, k, N).mean) for name, f in stages.items()}
-    times = {name: [] for name in fns}
-    for fn in fns.values():
-        jax.block_until_ready(fn(next(keys)))
-    for _ in range(7):
-        for name, fn in fns.items():
-            start = time.perf_counter()
-            jax.block_until_ready(fn(next(keys)))
-            times[name].append(time.perf_counter() - start)
-    t = {name: statistics.median(v) for name, v in times.items()}
+    t = interleaved_medians(fns, keys)
     return {f"{name}_vs_floor": t[name] / t["floor"] for name in fns if name != "floor"} | {"floor_s": t["floor"]}
 
 

@@ -19,3 +19,18 @@ def median_seconds(run, key, repeats: int = 3) -> float:
         jax.block_until_ready(run(k))
         times.append(time.perf_counter() - start)
     return statistics.median(times)
+
+
+def interleaved_medians(fns: dict, keys, repeats: int = 7) -> dict:
+    """Median seconds of each `fns[name](k)`, the functions called in turn `repeats` times (after
+    one warm-up call each) so that a burst of load on a shared machine hits them alike; `keys` is
+    an iterator of fresh keys, one per call."""
+    for fn in fns.values():
+        jax.block_until_ready(fn(next(keys)))
+    times = {name: [] for name in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            start = time.perf_counter()
+            jax.block_until_ready(fn(next(keys)))
+            times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(v) for name, v in times.items()}
