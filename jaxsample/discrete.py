@@ -89,6 +89,18 @@ def normalized_tables(weights):
     return jnp.asarray(pmf, dtype), jnp.asarray(cdf_from_weights(w, np), dtype)
 
 
+# Up to this many entries a CDF is searched by comparing u with every entry: no loop, so the search
+# fuses with the warp around it (a binary search is a loop of dependent gathers, which XLA runs as
+# a separate while loop over the whole chunk), and for so few entries it is not more work.
+_COMPARE_ALL_MAX = 32
+
+
+def search_right(cdf, u):
+    """#{k : cdf[k] <= u} for a non-decreasing 1-D `cdf` (`searchsorted(..., side="right")`)."""
+    method = "compare_all" if cdf.shape[-1] <= _COMPARE_ALL_MAX else "scan"
+    return jnp.searchsorted(cdf, u, side="right", method=method)
+
+
 def select_with_remainder(cdf, u):
     """Index i with P_{i-1} <= u < P_i (P_{-1} = 0), and the remainder (u - P_{i-1}) / (P_i - P_{i-1}).
 
@@ -97,7 +109,7 @@ def select_with_remainder(cdf, u):
     independent of it, so it can drive the next decision; it is clamped below 1.
     """
     n = cdf.shape[-1]
-    index = jnp.clip(jnp.searchsorted(cdf, u, side="right"), 0, n - 1).astype(jnp.int32)
+    index = jnp.clip(search_right(cdf, u), 0, n - 1).astype(jnp.int32)
     upper = cdf[index]
     lower = jnp.where(index > 0, cdf[jnp.maximum(index - 1, 0)], 0.0)
     width = upper - lower

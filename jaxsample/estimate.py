@@ -19,8 +19,11 @@ replicates (Sobol', stratified) the per-replicate sums are kept in double-float 
 stderr is the spread of the replicate means, which for Sobol' points drops below a float32 ulp of
 the mean (it came out as 0 when the means were rounded first).
 
-Speed: the g points a generator call yields (two 2-d points per Philox block) are evaluated in
-one fused loop and stored once per chunk (`_materialize`), so the generator runs once per block.
+Speed: the per-sample work (warp, density, f) is evaluated on one array per coordinate
+(`jaxsample.lanes`), so XLA fuses it into one loop however f is written (`x @ a`, `jnp.sum(x * a)`,
+components); the g points a generator call yields (two 2-d points per Philox block) are computed
+in that loop and stored once per chunk (`jaxsample.computed_once`), so the generator runs once
+per block.
 
 Standard error: with independent points (the "random" source) it is sqrt(s²/n), s² the sample
 variance of Y. With R > 1 replicates (stratified, Sobol'), points within a replicate are
@@ -45,6 +48,8 @@ import numpy as np
 
 from ._base import check_choice, default_float_dtype, pytree_dataclass
 from . import doublefloat
+from .computed_once import computed_once
+from .lanes import lane_map
 from .numerics import safe_div, safe_sqrt
 from .uniforms import Source, as_source, seed_from_key
 
@@ -143,15 +148,20 @@ class _Moments:
 def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int) -> _Moments:
     """Statistics of one chunk given as g arrays of values (count / g, *out) (see Source.groups).
 
-    With replicates > 1 there is one group, whose length is a multiple of `replicates`.
+    With replicates R > 1, g divides R and the chunk's offset is a multiple of R.
     """
     first = groups[0]
-    count = first.shape[0] * len(groups)
+    g = len(groups)
+    count = first.shape[0] * g
     if replicates > 1:
         # Replicate means are compared with each other (their spread is the stderr), so they are
-        # summed in double-float: see jaxsample.doublefloat.
-        per_replicate, low = doublefloat.sum_axis0(
-            first.reshape((count // replicates, replicates) + first.shape[1:]))
+        # summed in double-float: see jaxsample.doublefloat. Group q holds the points g b + q of
+        # a chunk whose offset is a multiple of R (and g divides R): replicates q, q + g, ...
+        width = replicates // g
+        parts = [doublefloat.sum_axis0(y.reshape((count // replicates, width) + y.shape[1:]))
+                 for y in groups]
+        per_replicate, low = (jnp.stack([part[i] for part in parts], axis=1)
+                              .reshape((replicates,) + first.shape[1:]) for i in (0, 1))
     else:
         per_replicate = tree_sum(sum(groups))[None]
         low = jnp.zeros_like(per_replicate)
@@ -220,37 +230,29 @@ def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
 # ----------------------------------------------------------------------------------------------
 
 
-def _materialize(values: tuple[jax.Array, ...], offset) -> tuple[jax.Array, ...]:
-    """The chunk's values, computed in one fused loop and stored once before they are reduced.
+def _lane_values(values_fn, u: jax.Array) -> jax.Array:
+    """values_fn on the (count, dims) block u, evaluated per point on coordinate lanes.
 
-    Why: the g groups of a chunk come from the same generator calls (Random draws g = 2 points
-    of a 2-d sampler from one Philox block), and XLA's CPU fusion duplicates a cheap shared
-    producer into every consumer, so each group, and each of the reductions in `_chunk_moments`,
-    would otherwise rerun the whole generator (seen in the optimized HLO: Philox twice per block).
-    `lax.optimization_barrier` does not prevent this on CPU (it is expanded before fusion). So
-    the groups are packed pairwise as the real and imaginary parts of one complex array, which
-    a single loop fusion computes, and that array is returned from a `lax.cond` branch, a
-    boundary fusion cannot cross. The predicate is always true but is not a compile-time
-    constant (it reads the traced offset; were XLA ever to fold it, only the speed would be
-    lost). Both parts are unpacked exactly: no arithmetic touches them.
+    `values_fn` is elementwise over the points, so values_fn(u[None])[0] is its per-point form;
+    `lanes.lane_map` evaluates that on one (count,) array per coordinate, which XLA fuses into one
+    loop whatever shape of program the integrand is (see `jaxsample.lanes` for why vmap is not).
     """
-    if len(values) == 1:
-        return values
-    packed = tuple(jax.lax.complex(values[i], values[i + 1]) for i in range(0, len(values), 2))
-    # True for every offset (a uint32 shifted right by one is < 2^31), yet not a constant to XLA.
-    always = (jnp.asarray(offset, jnp.uint32) >> 1) != jnp.uint32(0xFFFFFFFF)
-    packed = jax.lax.cond(always, lambda: packed, lambda: tuple(jnp.zeros_like(p) for p in packed))
-    return tuple(part for p in packed for part in (jnp.real(p), jnp.imag(p)))
+    count, dims = u.shape
+    point = lambda one: values_fn(one[None])[0]
+    return lane_map(point, count)(tuple(u[:, j] for j in range(dims)))
 
 
 def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,
-            chunk_size: int, out_shape, aligned: bool) -> _Moments:
-    """Moments of values_fn over the points with global indices [base, base + count)."""
+            chunk_size: int, out_shape, aligned: int) -> _Moments:
+    """Moments of values_fn over the points with global indices [base, base + count).
+
+    `aligned`: every chunk offset is a multiple of it (it lets the sources take fast paths)."""
     replicates = source.replicates
 
     def chunk(offset, size):
         points = source.groups(seed, offset, size, dims, dtype, total=total, aligned=aligned)
-        values = _materialize(tuple(values_fn(u) for u in points), offset)
+        # The g groups share each generator call: computed in one loop, stored once per chunk.
+        values = computed_once([_lane_values(values_fn, u) for u in points], offset)
         return _chunk_moments(values, replicates)
 
     moments = _empty_moments(replicates, out_shape, dtype)
@@ -303,7 +305,8 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
     seed = seed_from_key(key)
 
     if mesh is None:
-        moments = _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape, True)
+        moments = _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape,
+                          chunk_size)
         return _finish(moments, n, replicates)
 
     per_device = n // devices
@@ -313,7 +316,7 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
         device = jax.lax.axis_index(axes)
         base = device.astype(jnp.uint32) * jnp.uint32(per_device)
         m = _stream(values_fn, source, seed, dims, dtype, base, per_device, n, chunk_size,
-                    out_shape, per_device % 4 == 0)
+                    out_shape, math.gcd(per_device, chunk_size))
         # Combine devices: compensated sums are added, M2 merged about the global mean.
         # The per-replicate sums are gathered and added in double-float (a psum would round them).
         sums, low = doublefloat.sum_axis0(jax.lax.all_gather(m.sums, axes), leaf=1)

@@ -72,10 +72,12 @@ class Mixture(Sampler):
     def warp(self, u):
         index, remainder = select_with_remainder(cdf_from_weights(jnp.asarray(self.weights)), u[..., 0])
         u = jnp.concatenate([remainder[..., None], u[..., 1:]], axis=-1)
-        outputs = jnp.stack([c.warp(u[..., : c.uniform_dims]) for c in self.components])
-        event_axes = len(self.event_shape)
-        index = index.reshape((1,) + index.shape + (1,) * event_axes)
-        return jnp.take_along_axis(outputs, index, axis=0)[0]
+        outputs = [c.warp(u[..., : c.uniform_dims]) for c in self.components]
+        if len(outputs) == 1:
+            return outputs[0]
+        # An elementwise select (not a gather from stacked outputs): it fuses with the warps.
+        index = index.reshape(index.shape + (1,) * len(self.event_shape))
+        return jax.lax.select_n(jnp.broadcast_to(index, outputs[0].shape), *outputs)
 
     def pdf(self, x):
         pmf = self._pmf()

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, check_parameter, pytree_dataclass
+from ._base import Sampler, check_parameter, draw, pytree_dataclass
 
 
 @pytree_dataclass
@@ -94,7 +94,7 @@ class Rejection(Sampler):
 
     def sample_with_info(self, key, shape=(), dtype=None):
         """(samples, RejectionInfo) from uniforms drawn with `key`."""
-        return self.warp_with_info(self._uniforms(key, shape, dtype))
+        return draw(self, key, shape, dtype, "warp_with_info")
 
     def pdf(self, x):
         p = self.target_pdf(x)

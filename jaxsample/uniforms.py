@@ -129,14 +129,15 @@ def _samples_per_block(dims: int) -> int:
 
 
 def random_bits(seed, offset, count: int, dims: int, stream: int = _STREAM_RANDOM,
-                aligned: bool = False) -> jax.Array:
+                aligned: int | bool = False) -> jax.Array:
     """(count, dims) uint32 words for global sample indices [offset, offset + count).
 
     Layout: with g = 4 // dims samples per Philox block (dims <= 4), sample i takes words
     (i mod g) * dims ... of the block with counter (i // g, 0, stream, 0); with dims > 4, sample i
     takes the blocks (i, j, stream, 0), j = 0, 1, ... So sample i depends only on (seed, i).
-    `offset` may be traced. `aligned=True` promises offset % 4 == 0 (the estimators' chunks), which
-    lets a traced offset skip the spare block and the dynamic slice of the general path.
+    `offset` may be traced. `aligned` promises that offset is a multiple of it (True: of 4; the
+    estimators' chunks), which lets a traced offset skip the spare block and the dynamic slice of
+    the general path.
     """
     g = _samples_per_block(dims)
     if dims > 4:
@@ -146,7 +147,7 @@ def random_bits(seed, offset, count: int, dims: int, stream: int = _STREAM_RANDO
             words.extend(_philox_words(seed, index, stream, j))
         return jnp.stack(words[:dims], axis=-1)
     static_offset = isinstance(offset, (int, np.integer))
-    if aligned or (static_offset and offset % g == 0):
+    if _alignment(aligned) % g == 0 or (static_offset and offset % g == 0):
         blocks = -(-count // g)
         first = _u32(offset) // _u32(g) + jnp.arange(blocks, dtype=jnp.uint32)
         words = jnp.stack(_philox_words(seed, first, stream), axis=-1)  # (blocks, 4)
@@ -363,13 +364,45 @@ def owen_scramble(x: jax.Array, seed: jax.Array) -> jax.Array:
     each digit is a fair coin given the digits above it: each scrambled point is uniform on the 2^32
     grid while the net structure of the whole set is kept.
     """
-    x = _reverse_bits(x)
-    x = x + seed
+    return _scramble_reversed(_reverse_bits(x), seed)
+
+
+def _scramble_reversed(reversed_x: jax.Array, seed: jax.Array) -> jax.Array:
+    """`owen_scramble` of x given reverse_bits(x) (xor commutes with the reversal, so a table of
+    reversed points saves the first reversal)."""
+    x = reversed_x + seed
     x = x ^ (x * _u32(0x6C50B47C))
     x = x ^ (x * _u32(0xB82F1E52))
     x = x ^ (x * _u32(0xC7AFE638))
     x = x ^ (x * _u32(0x8D22F6E6))
     return _reverse_bits(x)
+
+
+def _reverse_bits_np(x: np.ndarray) -> np.ndarray:
+    x = x.astype(np.uint32)
+    for shift, mask in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF)):
+        x = ((x >> np.uint32(shift)) & np.uint32(mask)) | ((x & np.uint32(mask)) << np.uint32(shift))
+    return (x >> np.uint32(16)) | (x << np.uint32(16))
+
+
+def _sobol_low_table(bits: int, dims: int) -> np.ndarray:
+    """(2^bits, dims) uint32: bit-reversed unscrambled Sobol' points 0 .. 2^bits - 1 (NumPy)."""
+    key = ("low", bits, dims)
+    if key not in _SOBOL_CACHE:
+        index = np.arange(1 << bits, dtype=np.uint32)[:, None]
+        directions = sobol_direction_numbers(dims)
+        points = np.zeros((1 << bits, dims), dtype=np.uint32)
+        for k in range(bits):
+            points ^= np.where((index >> np.uint32(k)) & np.uint32(1), directions[:, k], np.uint32(0))
+        _SOBOL_CACHE[key] = _reverse_bits_np(points)
+    return _SOBOL_CACHE[key]
+
+
+def _alignment(aligned) -> int:
+    """`aligned` as the integer the offset is known to be a multiple of (True: 4, False: 1)."""
+    if isinstance(aligned, (bool, np.bool_)):
+        return 4 if aligned else 1
+    return max(int(aligned), 1)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -384,18 +417,20 @@ class Source:
     (global index g belongs to replicate g mod R, as its point g div R): the estimators take their
     standard error from the spread of the R replicate means, because within one replicate the
     points are not independent. `total` is the number of points the whole stream will have
-    (needed where the construction depends on it, as stratification does).
+    (needed where the construction depends on it, as stratification does). `aligned` is a promise
+    about a traced offset: it is a multiple of this integer (True means 4), so a source may take a
+    faster path that gives the same points.
     """
 
     replicates: int = 1
     name: str = "source"
 
     def block(self, seed, offset, count: int, dims: int, dtype=jnp.float32, total=None,
-              aligned: bool = False) -> jax.Array:
+              aligned: int | bool = False) -> jax.Array:
         raise NotImplementedError
 
     def groups(self, seed, offset, count: int, dims: int, dtype=jnp.float32, total=None,
-               aligned: bool = False) -> tuple[jax.Array, ...]:
+               aligned: int | bool = False) -> tuple[jax.Array, ...]:
         """The same points as `block`, as g arrays of shape (count / g, dims): array q holds the
         points offset + g b + q, b = 0, 1, ... Consumers that only reduce over the points (the
         estimators) use this form, which lets a generator hand over every word it computes without
@@ -423,7 +458,7 @@ class Random(Source):
 
     def groups(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         g = _samples_per_block(dims)
-        if dims > 4 or g == 1 or count % g or not aligned:
+        if dims > 4 or g == 1 or count % g or _alignment(aligned) % g:
             return (self.block(seed, offset, count, dims, dtype, total, aligned),)
         # Point offset + g b + q takes words q dims ... (q + 1) dims - 1 of block offset / g + b.
         first = _u32(offset) // _u32(g) + jnp.arange(count // g, dtype=jnp.uint32)
@@ -458,16 +493,39 @@ class Stratified(Source):
     def __init__(self, replicates: int = 16):
         self.replicates = _check_replicates("Stratified", replicates)
 
-    def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
+    def _per_replicate(self, total) -> int:
         if total is None:
             raise ValueError("Stratified: 'total' (the number of points of the whole stream) is required")
         if total % self.replicates:
             raise ValueError(f"Stratified: total={total} must be a multiple of replicates={self.replicates}")
-        per_replicate = total // self.replicates
+        return total // self.replicates
+
+    def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
+        per_replicate = self._per_replicate(total)
         jitter = bits_to_unit(random_bits(seed, offset, count, dims, _STREAM_JITTER, aligned=aligned), dtype)
-        index = _index_words(offset, count) // _u32(self.replicates)
+        return self._place(jitter, _index_words(offset, count), per_replicate, dtype)
+
+    def groups(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
+        """The same points as `block`, g = 4 // dims per Philox block of jitter (see
+        `Source.groups`), so that the estimators compute each block once."""
+        per_replicate = self._per_replicate(total)
+        g = _samples_per_block(dims)
+        if dims > 4 or g == 1 or count % g or _alignment(aligned) % g or self.replicates % g:
+            return (self.block(seed, offset, count, dims, dtype, total, aligned),)
+        blocks = jnp.arange(count // g, dtype=jnp.uint32)
+        words = _philox_words(seed, _u32(offset) // _u32(g) + blocks, _STREAM_JITTER)
+        out = []
+        for q in range(g):
+            jitter = jnp.stack([bits_to_unit(words[q * dims + j], dtype) for j in range(dims)], axis=-1)
+            index = _u32(offset) + _u32(g) * blocks + _u32(q)
+            out.append(self._place(jitter, index, per_replicate, dtype))
+        return tuple(out)
+
+    def _place(self, jitter, index, per_replicate: int, dtype):
+        """Points with global indices `index` (uint32) given their jitter (..., dims) in (0, 1)."""
+        index = index // _u32(self.replicates)
         top = np.nextafter(np.array(1.0, dtype), np.array(0.0, dtype))
-        if dims == 1:
+        if jitter.shape[-1] == 1:
             cell = index.astype(jnp.int32).astype(dtype)
             return jnp.minimum((cell[:, None] + jitter) / per_replicate, top)
         side = int(np.floor(np.sqrt(per_replicate)))
@@ -520,6 +578,33 @@ class Sobol(Source):
         seeds = self.scramble_seeds(seed, dims)[replicate]  # (count, dims)
         fractions = owen_scramble(sobol_points(point, dims, index_bits), seeds)
         return bits_to_unit(fractions, dtype)
+
+    def groups(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
+        """The same points as `block`; fast when the chunk is a whole aligned run of points.
+
+        If each replicate takes m = count / R consecutive points m0 .. m0 + m - 1 with m0 a
+        multiple of 2^b >= m (an estimator's chunks, `aligned` a multiple of R 2^b), then point
+        m0 + j is P(m0) xor P(j), j < 2^b, with disjoint bits: P(j) comes from a constant table
+        (bit-reversed, so the scramble's first reversal is free) and P(m0) is one vector per chunk.
+        Laid out as (j, replicate), the table is read along rows and the seeds along columns:
+        no gather and no per-point loop over index bits. The points are bit-identical to `block`.
+        """
+        replicates = self.replicates
+        per = count // replicates
+        bits = max(per - 1, 0).bit_length()
+        if (dims > MAX_SOBOL_DIMS or count % replicates or per == 0
+                or _alignment(aligned) % (replicates << bits)):
+            return (self.block(seed, offset, count, dims, dtype, total, aligned),)
+        first = _u32(offset) // _u32(replicates)
+        high = _reverse_bits(sobol_points(first, dims))  # (dims,)
+        table = _sobol_low_table(bits, dims)[:per]        # (per, dims), NumPy constant
+        seeds = self.scramble_seeds(seed, dims)           # (R, dims)
+        columns = []
+        for j in range(dims):
+            reversed_points = jnp.asarray(table[:, j])[:, None] ^ high[j]
+            fractions = _scramble_reversed(reversed_points, seeds[None, :, j])  # (per, R)
+            columns.append(bits_to_unit(fractions.reshape(count), dtype))
+        return (jnp.stack(columns, axis=-1),)
 
 
 SourceLike = Union[str, Source]
