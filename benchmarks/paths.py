@@ -253,6 +253,8 @@ def path_table(quick: bool = True, tiny: bool = False, progress=print) -> list[d
                                                         names=("PhongLobe(20)", "UniformDisk(concentric)") if tiny else None)),
                 ("scene.shade", lambda: shading(n_est, repeats)),
                 ("∫cos³ and its gradient", lambda: benchmarked_case(n_est, repeats))]
+    if tiny:  # a smoke test of the machinery, not a measurement
+        sections = sections[:1]
     rows = []
     for name, run in sections:
         progress(f"[paths] {name}")

@@ -196,6 +196,7 @@ def _as_dtype(dtype):
 
 
 _DRAW_CHUNK = 1 << 16
+_MATERIALIZE_UNIFORMS = True
 
 
 @functools.partial(jax.jit, static_argnums=(2, 3, 4))
@@ -203,7 +204,7 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
     """`sampler.<method>` (warp, warp_with_pdf, ...) of the stream's first points, shaped
     `shape + event`: `sample` and `sample_with_pdf` as one compiled program, whatever the sampler.
 
-    The uniforms come as the generator makes them (`Source.groups`: g = 4 // d points per Philox
+    The uniforms come as the generator makes them (`Source.lanes`: g = 4 // d points per Philox
     block, one array per coordinate), the warp runs on coordinate lanes (`jaxsample.lanes`), and
     every output coordinate of every group is computed in one loop and stored once
     (`jaxsample.computed_once`) before the groups are interleaved into the (count, *event) result.
@@ -225,9 +226,12 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
     fn = getattr(sampler, method)
 
     def one_chunk(offset):
-        groups = Random().groups(seed, offset, chunk, dims, dtype, aligned=True)
+        groups = Random().lanes(seed, offset, chunk, dims, dtype, aligned=True)
+        if _MATERIALIZE_UNIFORMS:
+            flat = iter(computed_once([c for lanes in groups for c in lanes], offset))
+            groups = [tuple(next(flat) for _ in lanes) for lanes in groups]
         per_group = chunk // len(groups)
-        outputs = [lane_map(fn, per_group)(tuple(u[:, j] for j in range(dims))) for u in groups]
+        outputs = [lane_map(fn, per_group)(lanes) for lanes in groups]
         leaves = [jax.tree_util.tree_leaves(o) for o in outputs]
         columns, layout = [], []
         for group in leaves:

@@ -55,10 +55,30 @@ def add(x: tuple[jax.Array, jax.Array], y: tuple[jax.Array, jax.Array]):
     return jnp.where(jnp.isfinite(s), hi, s), lo
 
 
+def _float64_available() -> bool:
+    # TPUs have no float64 arithmetic; CPUs and GPUs sum in it at memory speed.
+    return jax.default_backend() != "tpu"
+
+
 def sum_axis0(values: jax.Array, leaf: int = 4) -> tuple[jax.Array, jax.Array]:
-    """Σ over axis 0 as (hi, lo): plain float32 sums over leaves of `leaf` values, then a pairwise
-    tree of TwoSums. The leaf rounding errors are independent and of size ε |leaf sum|, so the
-    result's error is ~ε sqrt(leaf / count) relative instead of the ~ε of a plain tree."""
+    """Σ over axis 0 as (hi, lo).
+
+    float32 values, where the backend has float64: one float64 sum (relative error below
+    count · 2^-53), split into hi = fl32(s) and lo = fl32(s - hi), which keeps ~48 bits. This is
+    both more accurate and, on XLA's CPU backend, ~3x cheaper per value than the tree below, whose
+    ten levels of small TwoSum kernels cost more than the points they summed (measured: the
+    estimator with 16 replicates of Philox points took 7.9 ns/sample with the tree and 3.4 with
+    float64, against 2.7 without replicates).
+
+    Otherwise: plain sums over leaves of `leaf` values, then a pairwise tree of TwoSums. The leaf
+    rounding errors are independent and of size ε |leaf sum|, so the result's error is
+    ~ε sqrt(leaf / count) relative instead of the ~ε of a plain tree."""
+    if values.dtype == jnp.float32 and _float64_available():
+        with jax.enable_x64(True):
+            total = jnp.sum(values.astype(jnp.float64), axis=0)
+            hi = total.astype(jnp.float32)
+            lo = (total - hi.astype(jnp.float64)).astype(jnp.float32)
+        return hi, lo
     count = values.shape[0]
     padded = -(-count // leaf) * leaf
     if padded != count:

@@ -145,11 +145,14 @@ class _Moments:
     count: jax.Array         # float: exact for the chunk multiples we use
 
 
-def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int) -> _Moments:
-    """Statistics of one chunk given as g arrays of values (count / g, *out) (see Source.groups).
+def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape) -> _Moments:
+    """Statistics of one chunk given as g arrays of values (*lanes, *out) (see Source.lanes:
+    group q holds the points g b + q of the chunk, b the C-order index over the lanes).
 
     With replicates R > 1, g divides R and the chunk's offset is a multiple of R.
     """
+    out_shape = tuple(out_shape)
+    groups = [y.reshape((-1,) + out_shape) for y in groups]
     first = groups[0]
     g = len(groups)
     count = first.shape[0] * g
@@ -158,10 +161,9 @@ def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int) -> _Moments:
         # summed in double-float: see jaxsample.doublefloat. Group q holds the points g b + q of
         # a chunk whose offset is a multiple of R (and g divides R): replicates q, q + g, ...
         width = replicates // g
-        parts = [doublefloat.sum_axis0(y.reshape((count // replicates, width) + y.shape[1:]))
-                 for y in groups]
+        parts = [doublefloat.sum_axis0(y.reshape((count // replicates, width) + out_shape)) for y in groups]
         per_replicate, low = (jnp.stack([part[i] for part in parts], axis=1)
-                              .reshape((replicates,) + first.shape[1:]) for i in (0, 1))
+                              .reshape((replicates,) + out_shape) for i in (0, 1))
     else:
         per_replicate = tree_sum(sum(groups))[None]
         low = jnp.zeros_like(per_replicate)
@@ -230,16 +232,16 @@ def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
 # ----------------------------------------------------------------------------------------------
 
 
-def _lane_values(values_fn, u: jax.Array) -> jax.Array:
-    """values_fn on the (count, dims) block u, evaluated per point on coordinate lanes.
+def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
+    """values_fn on the points whose coordinates are `lanes` (d arrays of one shape, the points
+    in C order); the result has that shape + values_fn's output shape.
 
     `values_fn` is elementwise over the points, so values_fn(u[None])[0] is its per-point form;
-    `lanes.lane_map` evaluates that on one (count,) array per coordinate, which XLA fuses into one
-    loop whatever shape of program the integrand is (see `jaxsample.lanes` for why vmap is not).
+    `lanes.lane_map` evaluates that on one array per coordinate, which XLA fuses into one loop
+    whatever shape of program the integrand is (see `jaxsample.lanes` for why vmap is not).
     """
-    count, dims = u.shape
     point = lambda one: values_fn(one[None])[0]
-    return lane_map(point, count)(tuple(u[:, j] for j in range(dims)))
+    return lane_map(point, lanes[0].shape)(tuple(lanes))
 
 
 def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,
@@ -250,10 +252,10 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
     replicates = source.replicates
 
     def chunk(offset, size):
-        points = source.groups(seed, offset, size, dims, dtype, total=total, aligned=aligned)
+        groups = source.lanes(seed, offset, size, dims, dtype, total=total, aligned=aligned)
         # The g groups share each generator call: computed in one loop, stored once per chunk.
-        values = computed_once([_lane_values(values_fn, u) for u in points], offset)
-        return _chunk_moments(values, replicates)
+        values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], offset)
+        return _chunk_moments(values, replicates, out_shape)
 
     moments = _empty_moments(replicates, out_shape, dtype)
     steps, tail = divmod(count, chunk_size)

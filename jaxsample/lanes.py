@@ -11,7 +11,7 @@ components (`x[0] * a[0] + ...`) the same integrand is one loop fusion, 10-30x f
 
 `lane_map(fn)` gets that fusion for every way of writing the integrand. It traces `fn` on ONE
 point and evaluates the resulting jaxpr with a small interpreter in which a per-point value of
-shape S is a NumPy object array of shape S whose elements are (count,) arrays, one per lane:
+shape S is a NumPy object array of shape S whose elements are arrays over the points (one per element, the lanes):
 reshapes, slices, stacks, broadcasts and transposes only rearrange those arrays; `dot_general`
 and the reductions become sums of elementwise products written out in order; elementwise
 primitives apply lane by lane. XLA then sees only elementwise arithmetic on (count,) vectors,
@@ -58,7 +58,7 @@ _REDUCERS = {"reduce_sum": lax.add, "reduce_max": lax.max, "reduce_min": lax.min
 
 
 class _Lanes:
-    """A per-point value of shape `shape`: an object array of (count,) arrays (one per element)."""
+    """A per-point value of shape `shape`: an object array of arrays over the points (lanes)."""
 
     __slots__ = ("cells", "dtype")
 
@@ -72,7 +72,7 @@ class _Lanes:
 
 
 class _Stacked:
-    """A per-point value of shape S held as one (count, *S) array (the vmap layout)."""
+    """A per-point value of shape S held as one (*lane_shape, *S) array (the vmap layout)."""
 
     __slots__ = ("array",)
 
@@ -98,29 +98,29 @@ def _object_array(items, shape) -> np.ndarray:
 
 
 class _Evaluator:
-    def __init__(self, count: int):
-        self.count = count
+    def __init__(self, lane_shape: tuple[int, ...]):
+        self.lane_shape = lane_shape
 
     # -- conversions --------------------------------------------------------------------------
 
     def lane(self, value, dtype=None):
-        """A (count,) array for one element: lanes as they are, constants broadcast."""
+        """One element's array over the points: lanes as they are, constants broadcast."""
         value = jnp.asarray(value)
-        if value.shape == (self.count,):
+        if value.shape == self.lane_shape:
             return value
-        return lax.broadcast_in_dim(value, (self.count,), ())
+        return lax.broadcast_in_dim(value, self.lane_shape, ())
 
     def as_lanes(self, value) -> _Lanes | None:
         if isinstance(value, _Lanes):
             return value
         if isinstance(value, _Stacked):
             array = value.array
-            shape = array.shape[1:]
+            shape = array.shape[len(self.lane_shape):]
             size = int(np.prod(shape, dtype=np.int64))
             if size > MAX_LANES:
                 return None
-            flat = array.reshape((self.count, size))
-            return _Lanes(_object_array([flat[:, i] for i in range(size)], shape), array.dtype)
+            flat = array.reshape(self.lane_shape + (size,))
+            return _Lanes(_object_array([flat[..., i] for i in range(size)], shape), array.dtype)
         return None
 
     def as_stacked(self, value) -> _Stacked:
@@ -128,11 +128,11 @@ class _Evaluator:
             return value
         cells = value.cells
         if cells.size == 0:
-            return _Stacked(jnp.zeros((self.count,) + cells.shape, value.dtype))
+            return _Stacked(jnp.zeros(self.lane_shape + cells.shape, value.dtype))
         if cells.ndim == 0:
             return _Stacked(self.lane(cells[()]))
         flat = jnp.stack([self.lane(c) for c in cells.ravel()], axis=-1)
-        return _Stacked(flat.reshape((self.count,) + cells.shape))
+        return _Stacked(flat.reshape(self.lane_shape + cells.shape))
 
     @staticmethod
     def batched(value) -> bool:
@@ -184,18 +184,23 @@ class _Evaluator:
         return self.fallback(eqn, inputs)
 
     def fallback(self, eqn, inputs):
-        """vmap of this one primitive over the stacked (count, *S) operands."""
+        """vmap of this one primitive over the stacked (points, *S) operands."""
         prim = eqn.primitive
+        lanes = self.lane_shape
+        points = int(np.prod(lanes, dtype=np.int64))
         axes = [0 if self.batched(x) else None for x in inputs]
-        operands = [self.as_stacked(x).array if self.batched(x) else x for x in inputs]
+        operands = [self.as_stacked(x).array for x in inputs if self.batched(x)]
+        operands = iter([a.reshape((points,) + a.shape[len(lanes):]) for a in operands])
+        operands = [next(operands) if self.batched(x) else x for x in inputs]
 
         def one(*xs):
             return _bind(prim, eqn.params, xs)
 
         out = jax.vmap(one, in_axes=axes, out_axes=0)(*operands)
+        unflat = lambda o: _Stacked(o.reshape(lanes + o.shape[1:]))
         if prim.multiple_results:
-            return [_Stacked(o) for o in out]
-        return _Stacked(out)
+            return [unflat(o) for o in out]
+        return unflat(out)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -409,18 +414,19 @@ _RULES = {
 }
 
 
-def lane_map(fn: Callable, count: int) -> Callable:
+def lane_map(fn: Callable, lane_shape) -> Callable:
     """`fn` maps ONE point (arrays of any shape, a pytree) to a pytree of arrays; the result maps
-    per-coordinate lanes to the same outputs stacked over the points, like `jax.vmap(fn)`.
+    per-coordinate lanes to the same outputs over all the points, like `jax.vmap(fn)`.
 
-    The returned function takes, for each argument of `fn`, an object-free description: a
-    (count, *S) array (the vmap layout, axis 0 over the points) or a tuple of `S[-1]` (count,)
-    arrays, one per coordinate (for a flat (d,) argument: lanes as the sources make them). It
-    returns outputs of shape (count, *out).
+    The points are laid out in an array of shape `lane_shape` (an int for a flat block). The
+    returned function takes, for each argument of `fn`, either a tuple of d arrays of shape
+    `lane_shape` (the coordinates of a flat (d,) argument: lanes as the sources make them) or one
+    array of shape lane_shape + S (the vmap layout). It returns outputs of shape lane_shape + out.
     """
+    lane_shape = (lane_shape,) if isinstance(lane_shape, (int, np.integer)) else tuple(lane_shape)
 
     def mapped(*args):
-        ev = _Evaluator(count)
+        ev = _Evaluator(lane_shape)
         specs, inputs = [], []
         for a in args:
             if isinstance(a, (tuple, list)):
@@ -429,7 +435,7 @@ def lane_map(fn: Callable, count: int) -> Callable:
                 inputs.append(_Lanes(_object_array([jnp.asarray(c) for c in a], (len(a),)), column.dtype))
             else:
                 a = jnp.asarray(a)
-                specs.append(jax.ShapeDtypeStruct(a.shape[1:], a.dtype))
+                specs.append(jax.ShapeDtypeStruct(a.shape[len(lane_shape):], a.dtype))
                 inputs.append(_Stacked(a))
         closed, out_tree = _trace(fn, specs)
         outs = ev.run(closed.jaxpr, closed.consts, inputs)
@@ -439,7 +445,7 @@ def lane_map(fn: Callable, count: int) -> Callable:
                 stacked.append(ev.as_stacked(o).array.astype(aval.dtype))
             else:  # the same for every point
                 o = jnp.asarray(o)
-                stacked.append(jnp.broadcast_to(o, (count,) + o.shape))
+                stacked.append(jnp.broadcast_to(o, lane_shape + o.shape))
         return jax.tree_util.tree_unflatten(out_tree, stacked)
 
     return mapped

@@ -8,7 +8,8 @@ Sections (each computed by a piece in `benchmarks/`, runnable alone):
   2. samplers: normalization, a known integral ± stderr, time per million (`samplers_table.py`);
   3. convergence: RMSE, bias, variance, ns/sample, time to unit variance, efficiency and RMSE
      slope per (integrand, strategy), with plots (`convergence.py`);
-  4. baselines: vectorized NumPy and the uniform-generation floor, as ratios (`baselines.py`);
+  4. baselines: vectorized NumPy and the uniform-generation floor, as ratios (`baselines.py`),
+     and the speed of every public path against its target (`paths.py`);
   5. the curse of dimensionality: quadrature against Monte Carlo and Sobol' (`dimensionality.py`);
   6. gradients: variance and cost per gradient estimator (`bench_gradients.py`);
   7. hard cases: non-finite values/gradients and float32 error at extreme parameters (`hard_cases.py`);
@@ -174,6 +175,15 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         base = baselines.baseline_table(quick=quick, progress=progress)
         _write_csv(out / "baselines.csv", [base])
         md += ["## Baselines (∫cos³ over H², cosine sampling, one run)\n", baselines.markdown_table(base)]
+
+    paths = _piece("paths")
+    path_rows = paths.path_table(quick=quick, tiny=tiny, progress=progress)
+    _write_csv(out / "paths.csv", path_rows)
+    md += ["## Speed of every public path\n",
+           "Each row times a program users write (ns per sample, or per radiance evaluation for "
+           "`shade`), with its ratio and target taken in this run from interleaved medians "
+           f"(`benchmarks/paths.py`{'; --tiny times only the integrand forms' if tiny else ''}).\n",
+           paths.markdown_table(path_rows)]
 
     dims_rows: list[dict] = []
     if not tiny:

@@ -429,14 +429,19 @@ class Source:
               aligned: int | bool = False) -> jax.Array:
         raise NotImplementedError
 
-    def groups(self, seed, offset, count: int, dims: int, dtype=jnp.float32, total=None,
-               aligned: int | bool = False) -> tuple[jax.Array, ...]:
-        """The same points as `block`, as g arrays of shape (count / g, dims): array q holds the
-        points offset + g b + q, b = 0, 1, ... Consumers that only reduce over the points (the
-        estimators) use this form, which lets a generator hand over every word it computes without
-        an interleaving copy; the default is g = 1.
+    def lanes(self, seed, offset, count: int, dims: int, dtype=jnp.float32, total=None,
+              aligned: int | bool = False) -> tuple[tuple[jax.Array, ...], ...]:
+        """The same points as `block`, as g groups of `dims` coordinate arrays of one shape (of size
+        count / g): group q holds the points offset + g b + q, b = 0, 1, ... in C order over that
+        shape (the default is g = 1 and shape (count,)).
+
+        Consumers that evaluate per-point functions and reduce over the points (the estimators,
+        `sample`) use this form: a generator hands over every word it computes, one array per
+        coordinate, with no interleaving stack for XLA to materialize (a (count, d) stack that
+        several consumers slice makes XLA store it, or recompute the generator in each).
         """
-        return (self.block(seed, offset, count, dims, dtype, total, aligned),)
+        points = self.block(seed, offset, count, dims, dtype, total, aligned)
+        return (tuple(points[:, j] for j in range(dims)),)
 
     def __repr__(self):
         return f"{type(self).__name__}(replicates={self.replicates})"
@@ -456,15 +461,18 @@ class Random(Source):
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         return bits_to_unit(random_bits(seed, offset, count, dims, aligned=aligned), dtype)
 
-    def groups(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
+    def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         g = _samples_per_block(dims)
-        if dims > 4 or g == 1 or count % g or _alignment(aligned) % g:
-            return (self.block(seed, offset, count, dims, dtype, total, aligned),)
+        if dims > 4:
+            index = _index_words(offset, count)
+            words = [w for j in range(-(-dims // 4)) for w in _philox_words(seed, index, _STREAM_RANDOM, j)]
+            return (tuple(bits_to_unit(w, dtype) for w in words[:dims]),)
+        if count % g or _alignment(aligned) % g:
+            return super().lanes(seed, offset, count, dims, dtype, total, aligned)
         # Point offset + g b + q takes words q dims ... (q + 1) dims - 1 of block offset / g + b.
         first = _u32(offset) // _u32(g) + jnp.arange(count // g, dtype=jnp.uint32)
         words = _philox_words(seed, first, _STREAM_RANDOM)
-        return tuple(jnp.stack([bits_to_unit(words[q * dims + j], dtype) for j in range(dims)], axis=-1)
-                     for q in range(g))
+        return tuple(tuple(bits_to_unit(words[q * dims + j], dtype) for j in range(dims)) for q in range(g))
 
 
 def _check_replicates(owner: str, replicates) -> int:
@@ -503,41 +511,38 @@ class Stratified(Source):
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         per_replicate = self._per_replicate(total)
         jitter = bits_to_unit(random_bits(seed, offset, count, dims, _STREAM_JITTER, aligned=aligned), dtype)
-        return self._place(jitter, _index_words(offset, count), per_replicate, dtype)
+        columns = [jitter[:, j] for j in range(dims)]
+        return jnp.stack(self._place(columns, _index_words(offset, count), per_replicate, dtype), axis=-1)
 
-    def groups(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
+    def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         """The same points as `block`, g = 4 // dims per Philox block of jitter (see
-        `Source.groups`), so that the estimators compute each block once."""
+        `Source.lanes`), so that the estimators compute each block once."""
         per_replicate = self._per_replicate(total)
         g = _samples_per_block(dims)
-        if dims > 4 or g == 1 or count % g or _alignment(aligned) % g or self.replicates % g:
-            return (self.block(seed, offset, count, dims, dtype, total, aligned),)
+        if dims > 4 or count % g or _alignment(aligned) % g or self.replicates % g:
+            return super().lanes(seed, offset, count, dims, dtype, total, aligned)
         blocks = jnp.arange(count // g, dtype=jnp.uint32)
         words = _philox_words(seed, _u32(offset) // _u32(g) + blocks, _STREAM_JITTER)
-        out = []
-        for q in range(g):
-            jitter = jnp.stack([bits_to_unit(words[q * dims + j], dtype) for j in range(dims)], axis=-1)
-            index = _u32(offset) + _u32(g) * blocks + _u32(q)
-            out.append(self._place(jitter, index, per_replicate, dtype))
-        return tuple(out)
+        return tuple(self._place([bits_to_unit(words[q * dims + j], dtype) for j in range(dims)],
+                                 _u32(offset) + _u32(g) * blocks + _u32(q), per_replicate, dtype)
+                     for q in range(g))
 
     def _place(self, jitter, index, per_replicate: int, dtype):
-        """Points with global indices `index` (uint32) given their jitter (..., dims) in (0, 1)."""
+        """Coordinates (a tuple) of the points with global indices `index` (uint32), given
+        their jitter coordinates in (0, 1)."""
         index = index // _u32(self.replicates)
         top = np.nextafter(np.array(1.0, dtype), np.array(0.0, dtype))
-        if jitter.shape[-1] == 1:
+        if len(jitter) == 1:
             cell = index.astype(jnp.int32).astype(dtype)
-            return jnp.minimum((cell[:, None] + jitter) / per_replicate, top)
+            return (jnp.minimum((cell + jitter[0]) / per_replicate, top),)
         side = int(np.floor(np.sqrt(per_replicate)))
         while (side + 1) * (side + 1) <= per_replicate:
             side += 1
-        column = (index % _u32(side)).astype(jnp.int32).astype(dtype)
-        row = (index // _u32(side)).astype(jnp.int32).astype(dtype)
-        in_grid = (index < _u32(side * side))[:, None]
-        gridded = jnp.stack([column, row], axis=-1)
-        gridded = jnp.minimum((gridded + jitter[:, :2]) / side, top)
-        first_two = jnp.where(in_grid, gridded, jitter[:, :2])
-        return jnp.concatenate([first_two, jitter[:, 2:]], axis=-1)
+        in_grid = index < _u32(side * side)
+        cells = ((index % _u32(side)), (index // _u32(side)))
+        first_two = tuple(jnp.where(in_grid, jnp.minimum((c.astype(jnp.int32).astype(dtype) + j) / side, top), j)
+                          for c, j in zip(cells, jitter[:2]))
+        return first_two + tuple(jitter[2:])
 
 
 class Sobol(Source):
@@ -579,7 +584,7 @@ class Sobol(Source):
         fractions = owen_scramble(sobol_points(point, dims, index_bits), seeds)
         return bits_to_unit(fractions, dtype)
 
-    def groups(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
+    def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         """The same points as `block`; fast when the chunk is a whole aligned run of points.
 
         If each replicate takes m = count / R consecutive points m0 .. m0 + m - 1 with m0 a
@@ -594,17 +599,18 @@ class Sobol(Source):
         bits = max(per - 1, 0).bit_length()
         if (dims > MAX_SOBOL_DIMS or count % replicates or per == 0
                 or _alignment(aligned) % (replicates << bits)):
-            return (self.block(seed, offset, count, dims, dtype, total, aligned),)
+            return super().lanes(seed, offset, count, dims, dtype, total, aligned)
         first = _u32(offset) // _u32(replicates)
         high = _reverse_bits(sobol_points(first, dims))  # (dims,)
         table = _sobol_low_table(bits, dims)[:per]        # (per, dims), NumPy constant
         seeds = self.scramble_seeds(seed, dims)           # (R, dims)
-        columns = []
-        for j in range(dims):
-            reversed_points = jnp.asarray(table[:, j])[:, None] ^ high[j]
-            fractions = _scramble_reversed(reversed_points, seeds[None, :, j])  # (per, R)
-            columns.append(bits_to_unit(fractions.reshape(count), dtype))
-        return (jnp.stack(columns, axis=-1),)
+        # Lanes of shape (per, R): point j of replicate r is global index offset + j R + r, the
+        # C order of the lanes, as `Source.lanes` asks. Kept 2-D (not flattened to (count,)),
+        # so that XLA's loops read the table row and the seeds without index arithmetic and
+        # vectorize (flattened, the fusion ran scalar: ~3x slower).
+        return (tuple(bits_to_unit(_scramble_reversed(jnp.asarray(table[:, j])[:, None] ^ high[j],
+                                                      seeds[None, :, j]), dtype)
+                      for j in range(dims)),)
 
 
 SourceLike = Union[str, Source]

@@ -125,12 +125,12 @@ def test_chunking_never_changes_the_points(source, dims):
     assert float(whole.min()) > 0 and float(whole.max()) < 1
 
 
-def test_random_groups_are_the_same_points_as_block():
+def test_random_lanes_are_the_same_points_as_block():
     seed = U.seed_from_key(next(KEYS))
     block = np.asarray(U.Random().block(seed, 64, 1024, 2))
-    groups = U.Random().groups(seed, 64, 1024, 2, aligned=True)
-    np.testing.assert_array_equal(block[0::2], np.asarray(groups[0]))
-    np.testing.assert_array_equal(block[1::2], np.asarray(groups[1]))
+    groups = [np.stack(lanes, axis=-1) for lanes in U.Random().lanes(seed, 64, 1024, 2, aligned=True)]
+    np.testing.assert_array_equal(block[0::2], groups[0])
+    np.testing.assert_array_equal(block[1::2], groups[1])
 
 
 # Unscrambled Sobol' points, natural order, new-joe-kuo-6.21201 (checked against SciPy's
