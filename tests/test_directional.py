@@ -195,6 +195,39 @@ def test_float32_matches_float64_at_the_hard_cases():
     assert worst_direction < 1e-6 and worst_pdf < 1e-5, (worst_direction, worst_pdf)
 
 
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_cone_constructors_match_their_closed_forms(dtype):
+    """Each UniformCone constructor against its float64 formula (deterministic, no FFR), and the
+    cap it builds against the angle or solid angle it was given: h = 1 - cos θ_max = 2 sin²(θ/2)
+    from the angle, h = Ω/(2π) from the solid angle, h = 1 - sqrt(1 - s) from s = sin² θ_max.
+    A cap of half the size (sin²(θ/2), Ω/4π) fails every line by a factor 2."""
+    with jax.enable_x64(dtype == "float64"):
+        dt = jnp.dtype(dtype)
+        rtol = 1e-12 if dtype == "float64" else 4e-7
+        theta = np.array([1e-6, 1e-3, 0.05, 0.4, 1.0, np.pi / 2, 2.5, 3.0, np.pi])
+        cone = js.UniformCone.from_angle(jnp.asarray(theta, dt))
+        np.testing.assert_allclose(cone.one_minus_cos_theta_max, 2 * np.sin(theta / 2) ** 2, rtol=rtol)
+        np.testing.assert_allclose(cone.solid_angle, 2 * np.pi * (1 - np.cos(theta)), rtol=rtol, atol=1e-15)
+        # The derivative of the cap's size follows the angle: dΩ/dθ = 2π sin θ.
+        d_solid = jax.vmap(jax.grad(lambda t: js.UniformCone.from_angle(t).solid_angle))(jnp.asarray(theta, dt))
+        np.testing.assert_allclose(d_solid, 2 * np.pi * np.sin(theta), rtol=10 * rtol, atol=1e-6)
+        # The warp's last sample sits on the rim: its angle from +z is θ_max.
+        rim = cone.warp(jnp.stack([jnp.full(theta.shape, 1 - 2.0 ** -24, dt), jnp.zeros(theta.shape, dt)], -1))
+        rim_angle = np.arctan2(np.hypot(np.asarray(rim[:, 0], np.float64), np.asarray(rim[:, 1], np.float64)),
+                               np.asarray(rim[:, 2], np.float64))
+        np.testing.assert_allclose(rim_angle, theta, rtol=1e-3)
+
+        omega = np.array([1e-8, 1e-3, 0.5, np.pi, 2 * np.pi, 10.0, 4 * np.pi])
+        cone = js.UniformCone.from_solid_angle(jnp.asarray(omega, dt))
+        np.testing.assert_allclose(cone.one_minus_cos_theta_max, omega / (2 * np.pi), rtol=rtol)
+        np.testing.assert_allclose(cone.solid_angle, omega, rtol=rtol)
+
+        sin2 = np.array([1e-8, 1e-4, 0.09, 0.5, 0.99, 1.0])
+        cone = js.UniformCone.from_sin2(jnp.asarray(sin2, dt))
+        np.testing.assert_allclose(cone.one_minus_cos_theta_max, sin2 / (1 + np.sqrt(1 - sin2)), rtol=rtol)
+        np.testing.assert_allclose(cone.cos_theta_max, np.sqrt(1 - sin2), rtol=rtol, atol=1e-7)
+
+
 def test_densities_vanish_outside_the_support_without_nan():
     below = jnp.array([[0.0, 0.6, -0.8], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
     for sampler in (js.UniformHemisphere(), js.CosineHemisphere(), js.PhongLobe(3.0),
