@@ -248,6 +248,47 @@ def test_a_wrong_density_is_detected():
         assert abs(_z(est, reference)) > 2 * Z_LIMIT, strategy
 
 
+@pytest.mark.parametrize("heuristic", [None, "power", "balance"])
+def test_shade_mis_weights_are_the_documented_heuristic_on_the_same_samples(heuristic):
+    """`shade(strategy="mis")` against a hand computation from the same points (the stream of
+    `key`: pair i takes uniforms (u0, u1) for the BRDF sample and (u2, u3) for the light sample):
+    Y = w_b f/p_b + w_l f/p_l with w_s = p_s^β / (p_b^β + p_l^β), β = 2 for "power" (the default)
+    and 1 for "balance". Deterministic (no FFR): shade and the hand value agree to float32
+    rounding (rtol 1e-5), and on these samples the other heuristic is more than 100x that away."""
+    brdf = scene.Phong(20.0, 0.9)
+    light = _mirror_offset_light(0.1, 0.2, 2.0)
+    wo, n = GLOSSY_WO, 1 << 12
+    key = jax.random.key(23)
+    options = {} if heuristic is None else {"heuristic": heuristic}
+    est = jax.jit(lambda k: scene.shade(POINT, NORMAL, wo, brdf, light, k, n, **options))(jax.random.clone(key))
+
+    u = js.uniforms.uniform_block("random", key, 0, n // 2, 4)
+    frame = js.Frame.from_normal(NORMAL)
+    wo_local = frame.to_local(wo)
+    wi_b, pdf_b = brdf.sample(wo_local, u[:, :2])
+    world_b = frame.to_world(wi_b)
+    value_b = brdf.eval(wo_local, wi_b) * light.radiance_from(POINT, world_b) * jnp.maximum(wi_b[:, 2], 0)
+    light_pdf_b = light.pdf(POINT, world_b)
+    world_l, radiance_l, pdf_l = light.sample(POINT, u[:, 2:])
+    wi_l = frame.to_local(world_l)
+    value_l = brdf.eval(wo_local, wi_l) * radiance_l * jnp.maximum(wi_l[:, 2], 0)
+    brdf_pdf_l = brdf.pdf(wo_local, wi_l)
+    f64 = [np.asarray(a, np.float64) for a in (value_b, pdf_b, light_pdf_b, value_l, pdf_l, brdf_pdf_l)]
+    value_b, pdf_b, light_pdf_b, value_l, pdf_l, brdf_pdf_l = f64
+
+    def by_hand(beta):
+        def weight(own, other):
+            return own ** beta / (own ** beta + other ** beta)
+        y = (np.where(pdf_b > 0, weight(pdf_b, light_pdf_b) * value_b / np.where(pdf_b > 0, pdf_b, 1), 0)
+             + np.where(pdf_l > 0, weight(pdf_l, brdf_pdf_l) * value_l / np.where(pdf_l > 0, pdf_l, 1), 0))
+        return float(np.mean(y))
+
+    beta = 1.0 if heuristic == "balance" else 2.0
+    expected, other = by_hand(beta), by_hand(3.0 - beta)
+    np.testing.assert_allclose(float(est.mean), expected, rtol=1e-5)
+    assert abs(other - expected) > 100 * 1e-5 * abs(expected), (other, expected)
+
+
 def test_mis_beats_both_strategies_on_a_glossy_surface_under_a_small_light():
     """Phong n = 200; a light of sin θ_max = 0.01, 0.15 rad off the mirror direction; a dim sky.
     BRDF samples almost never find the light, light samples of the sky almost never find the
