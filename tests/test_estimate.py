@@ -147,12 +147,15 @@ def test_grad_attached_exact_and_detached_zero():
     def power(n, key):
         return estimate(lambda w: jnp.maximum(w[2], 0.0) ** n, js.PhongLobe(exponent=n), key, 1 << 12).mean
 
+    key_a, key_own = jax.random.split(key_a)
     g = jax.jit(jax.grad(power))(4.0, key_a)
     np.testing.assert_allclose(g, -2 * np.pi / 25, rtol=1e-3)
+    # The same through the lobe's own density: f = p_n 2π/(n+1), so f/p = 2π/(n+1) per sample.
+    g_own = jax.jit(jax.grad(own_lobe))(4.0, key_own)
+    np.testing.assert_allclose(g_own, -2 * np.pi / 25, rtol=1e-3)
     gd = jax.jit(jax.grad(lambda n, k: estimate(cos3, js.PhongLobe(exponent=n), k, 1 << 12,
                                                 mode="detached").mean))(4.0, key_b)
     assert float(gd) == 0.0
-    del own_lobe
 
 
 def test_grad_finite_where_pdf_is_zero():
