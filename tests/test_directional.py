@@ -4,6 +4,13 @@ domain, finiteness at the hard cases in float32 and float64, parameter errors, j
 Statistical false-failure rate: the chi-square tests below form one family of at most
 `N_CHI2_TESTS` tests run at a family-wise significance of 1e-6 (Šidák-corrected per test), so the
 whole file fails by chance with probability below 1e-6.
+
+Power: the demonstrations that a wrong sampler is rejected run at the sample size the suite uses
+for that family (`CHI2_SAMPLES`), and require a p-value far below the threshold, so that the
+rejection is not one lucky key. At 400k samples a 2 % Phong exponent error was rejected for only
+some keys, so the Phong families use 2M samples: there a 2 % error gives p < 1e-50 for every key
+tried (a 1 % error is at the edge: rejected for 3 keys of 4 at n = 5). Cones 1 % too narrow give
+p < 1e-150 at 400k.
 """
 
 import jax
@@ -69,13 +76,19 @@ def test_normalization_across_the_documented_ranges(log_n, log_h, log_k):
 
 
 CHI2_CASES = [c for c in CASES if c[1] not in (1e4,)]
+# Samples per chi-square test, by family (default 400k): enough to reject a 2 % exponent error.
+CHI2_SAMPLES = {"PhongLobe": 2_000_000, "Oriented-Phong": 2_000_000}
+
+
+def chi2_samples(name):
+    return CHI2_SAMPLES.get(name, 400_000)
 
 
 @pytest.mark.parametrize("name,p", CHI2_CASES)
 def test_chi_square_goodness_of_fit(name, p):
     assert len(CHI2_CASES) <= N_CHI2_TESTS
     key = jax.random.fold_in(jax.random.key(20261121), CASES.index((name, p)))
-    result = testing.chi2_test(make(name, p), key, n_samples=400_000,
+    result = testing.chi2_test(make(name, p), key, n_samples=chi2_samples(name),
                                significance=FAMILY_SIGNIFICANCE, n_tests=N_CHI2_TESTS)
     assert result.passed, result
 
@@ -99,14 +112,17 @@ jax.tree_util.register_pytree_node(_ConeOff, lambda c: ((c.one_minus_cos_theta_m
                                    lambda _, ch: _ConeOff(one_minus_cos_theta_max=ch[0]))
 
 
-@pytest.mark.parametrize("wrong", [_PhongOff(jnp.float32(5.0)), _PhongOff(jnp.float32(100.0)),
-                                   _PhongOff(jnp.float32(1e6)),
-                                   _ConeOff(one_minus_cos_theta_max=jnp.float32(0.5)),
-                                   _ConeOff(one_minus_cos_theta_max=jnp.float32(1e-6))])
-def test_chi_square_rejects_a_sampler_off_by_two_percent(wrong):
-    result = testing.chi2_test(wrong, jax.random.key(7), n_samples=2_000_000,
+@pytest.mark.parametrize("family,wrong", [("PhongLobe", _PhongOff(jnp.float32(5.0))),
+                                          ("PhongLobe", _PhongOff(jnp.float32(100.0))),
+                                          ("PhongLobe", _PhongOff(jnp.float32(1e6))),
+                                          ("UniformCone", _ConeOff(one_minus_cos_theta_max=jnp.float32(0.5))),
+                                          ("UniformCone", _ConeOff(one_minus_cos_theta_max=jnp.float32(1e-6)))])
+def test_chi_square_rejects_a_sampler_off_by_two_percent(family, wrong):
+    # At the suite's own sample size for the family, and by a wide margin: p below 1e-20 where
+    # the threshold is 2.5e-8 (the margin seen over keys is tens of decades).
+    result = testing.chi2_test(wrong, jax.random.key(7), n_samples=chi2_samples(family),
                                significance=FAMILY_SIGNIFICANCE, n_tests=N_CHI2_TESTS)
-    assert not result.passed, result
+    assert not result.passed and result.p_value < 1e-20, result
 
 
 @pytest.mark.parametrize("name,p", [c for c in CASES if make(*c).has_inverse])
@@ -193,6 +209,39 @@ def test_float32_matches_float64_at_the_hard_cases():
         assert np.all(np.asarray(p32)[~positive] == 0)
         worst_pdf = max(worst_pdf, float(np.max(np.abs(np.asarray(p32)[positive] / p64[positive] - 1))))
     assert worst_direction < 1e-6 and worst_pdf < 1e-5, (worst_direction, worst_pdf)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_cone_constructors_match_their_closed_forms(dtype):
+    """Each UniformCone constructor against its float64 formula (deterministic, no FFR), and the
+    cap it builds against the angle or solid angle it was given: h = 1 - cos θ_max = 2 sin²(θ/2)
+    from the angle, h = Ω/(2π) from the solid angle, h = 1 - sqrt(1 - s) from s = sin² θ_max.
+    A cap of half the size (sin²(θ/2), Ω/4π) fails every line by a factor 2."""
+    with jax.enable_x64(dtype == "float64"):
+        dt = jnp.dtype(dtype)
+        rtol = 1e-12 if dtype == "float64" else 4e-7
+        theta = np.array([1e-6, 1e-3, 0.05, 0.4, 1.0, np.pi / 2, 2.5, 3.0, np.pi])
+        cone = js.UniformCone.from_angle(jnp.asarray(theta, dt))
+        np.testing.assert_allclose(cone.one_minus_cos_theta_max, 2 * np.sin(theta / 2) ** 2, rtol=rtol)
+        np.testing.assert_allclose(cone.solid_angle, 2 * np.pi * (1 - np.cos(theta)), rtol=rtol, atol=1e-15)
+        # The derivative of the cap's size follows the angle: dΩ/dθ = 2π sin θ.
+        d_solid = jax.vmap(jax.grad(lambda t: js.UniformCone.from_angle(t).solid_angle))(jnp.asarray(theta, dt))
+        np.testing.assert_allclose(d_solid, 2 * np.pi * np.sin(theta), rtol=10 * rtol, atol=1e-6)
+        # The warp's last sample sits on the rim: its angle from +z is θ_max.
+        rim = cone.warp(jnp.stack([jnp.full(theta.shape, 1 - 2.0 ** -24, dt), jnp.zeros(theta.shape, dt)], -1))
+        rim_angle = np.arctan2(np.hypot(np.asarray(rim[:, 0], np.float64), np.asarray(rim[:, 1], np.float64)),
+                               np.asarray(rim[:, 2], np.float64))
+        np.testing.assert_allclose(rim_angle, theta, rtol=1e-3)
+
+        omega = np.array([1e-8, 1e-3, 0.5, np.pi, 2 * np.pi, 10.0, 4 * np.pi])
+        cone = js.UniformCone.from_solid_angle(jnp.asarray(omega, dt))
+        np.testing.assert_allclose(cone.one_minus_cos_theta_max, omega / (2 * np.pi), rtol=rtol)
+        np.testing.assert_allclose(cone.solid_angle, omega, rtol=rtol)
+
+        sin2 = np.array([1e-8, 1e-4, 0.09, 0.5, 0.99, 1.0])
+        cone = js.UniformCone.from_sin2(jnp.asarray(sin2, dt))
+        np.testing.assert_allclose(cone.one_minus_cos_theta_max, sin2 / (1 + np.sqrt(1 - sin2)), rtol=rtol)
+        np.testing.assert_allclose(cone.cos_theta_max, np.sqrt(1 - sin2), rtol=rtol, atol=1e-7)
 
 
 def test_densities_vanish_outside_the_support_without_nan():

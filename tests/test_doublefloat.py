@@ -32,11 +32,15 @@ def test_sum_and_divide_to_44_bits():
     rng = np.random.default_rng(1)
     x = (rng.random(1 << 16) * 3 + 0.1).astype(np.float32)
     exact = math.fsum(x.astype(np.float64))
-    plain = float(jax.jit(jnp.sum)(jnp.asarray(x)))
     for leaf, tolerance in ((1, 1e-13), (4, 3e-9)):
         hi, lo = jax.jit(doublefloat.sum_axis0, static_argnums=1)(jnp.asarray(x), leaf)
         assert abs(float(hi) + float(lo) - exact) < tolerance * exact
-    assert abs(plain - exact) > 3e-9 * exact  # a plain float32 sum (XLA's) is much worse
+        # What the double-float form guarantees beyond float32: hi is the sum rounded to float32
+        # (hi = fl(hi + lo), renormalized), and lo carries the rest.
+        half_ulp = 0.5 * float(np.spacing(np.float32(hi)))
+        assert abs(float(hi) - exact) <= half_ulp + tolerance * exact
+        assert abs(float(lo)) <= half_ulp
+    # (No claim about XLA's plain float32 sum: a more accurate reduction elsewhere is welcome.)
     total = float(hi) + float(lo)
     for divisor in (3, 1 << 16, 99_991, (1 << 26) + 5):
         q_hi, q_lo = doublefloat.divide_by_int((hi, lo), divisor)

@@ -96,12 +96,16 @@ def test_chi2_fails_for_wrong_samplers():
     truth = UniformDisk("polar")
     impostor = Transformed(UniformBox(jnp.array([0.0, 0.0]), jnp.array([1.0, 2 * np.pi])),
                            _shrunk_radius, _disk_to_polar, domain=Disk())
-    assert not run_chi2(WrongWarp(truth, impostor), jax.random.key(12), N_CHI2).passed
+    # At the suite's sample size (run_chi2's 10^5) and by a margin: p < 1e-15 where the threshold is
+    # 1.3e-7 (seen over keys: below 1e-80 for both wrong samplers here).
+    result = run_chi2(WrongWarp(truth, impostor), jax.random.key(12), N_CHI2)
+    assert not result.passed and result.p_value < 1e-15, result
     # Vertex c pulled 5 % toward the centroid: samples stay inside, the density is wrong.
     a, b, c = (np.array(v) for v in TRIANGLE_2D)
     centroid = (a + b + c) / 3
     inner = triangle((a, b, c + 0.05 * (centroid - c)))
-    assert not run_chi2(WrongWarp(triangle(TRIANGLE_2D), inner), jax.random.key(13), N_CHI2).passed
+    result = run_chi2(WrongWarp(triangle(TRIANGLE_2D), inner), jax.random.key(13), N_CHI2)
+    assert not result.passed and result.p_value < 1e-15, result
 
 
 @pytest.mark.parametrize("name", ["disk-concentric", "disk-polar", "triangle-2d", "triangle-3d", "box"])
