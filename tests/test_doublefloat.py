@@ -6,6 +6,7 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,12 +29,15 @@ def test_two_sum_and_two_prod_are_exact(a, b):
     assert float(p) + float(e) == float(a32) * float(b32)  # a 48-bit product is exact in float64
 
 
-def test_sum_and_divide_to_44_bits():
+@pytest.mark.parametrize("method", ["tree", "float64"])
+def test_sum_and_divide_to_44_bits(method):
+    """Both ways of summing replicates: the TwoSum tree (backends without float64) and the
+    float64 sum (CPU, GPU; what "auto" picks there)."""
     rng = np.random.default_rng(1)
     x = (rng.random(1 << 16) * 3 + 0.1).astype(np.float32)
     exact = math.fsum(x.astype(np.float64))
     for leaf, tolerance in ((1, 1e-13), (4, 3e-9)):
-        hi, lo = jax.jit(doublefloat.sum_axis0, static_argnums=1)(jnp.asarray(x), leaf)
+        hi, lo = jax.jit(doublefloat.sum_axis0, static_argnums=(1, 2))(jnp.asarray(x), leaf, method)
         assert abs(float(hi) + float(lo) - exact) < tolerance * exact
         # What the double-float form guarantees beyond float32: hi is the sum rounded to float32
         # (hi = fl(hi + lo), renormalized), and lo carries the rest.
