@@ -196,7 +196,6 @@ def _as_dtype(dtype):
 
 
 _DRAW_CHUNK = 1 << 16
-_MATERIALIZE_UNIFORMS = True
 
 
 @functools.partial(jax.jit, static_argnums=(2, 3, 4))
@@ -227,9 +226,6 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
 
     def one_chunk(offset):
         groups = Random().lanes(seed, offset, chunk, dims, dtype, aligned=True)
-        if _MATERIALIZE_UNIFORMS:
-            flat = iter(computed_once([c for lanes in groups for c in lanes], offset))
-            groups = [tuple(next(flat) for _ in lanes) for lanes in groups]
         per_group = chunk // len(groups)
         outputs = [lane_map(fn, per_group)(lanes) for lanes in groups]
         leaves = [jax.tree_util.tree_leaves(o) for o in outputs]
