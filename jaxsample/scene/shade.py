@@ -53,15 +53,19 @@ def _as_tuple(lights) -> tuple:
     return (lights,)
 
 
-def mis_weight(own_pdf, other_pdf, exponent: float):
-    """w = p_own^β / (p_own^β + p_other^β), computed after dividing both by the larger one, so
-    that neither overflows (a tiny light's density is 1/(2π · 5e-9) ≈ 3e7; squared powers of
-    densities beyond 1e19 overflow float32) and the gradient stays finite. 0 when both are 0."""
-    largest = jnp.maximum(own_pdf, other_pdf)
-    scale = jnp.where(largest > 0, largest, 1.0)
-    own = (own_pdf / scale) ** exponent
-    other = (other_pdf / scale) ** exponent
-    return jnp.where(largest > 0, own / (own + other), 0.0)
+def mis_weight(own_pdf, other_pdf, exponent):
+    """w = p_own^β / (p_own^β + p_other^β), computed from the ratio of the smaller density to the
+    larger, r <= 1: w = 1 / (1 + r^β) for the larger, r^β / (1 + r^β) for the smaller. Neither
+    overflows (a tiny light's density is 1/(2π · 5e-9) ≈ 3e7; squared powers of densities beyond
+    1e19 overflow float32), the gradient stays finite, and it is the same arithmetic as dividing
+    both densities by the larger one (x / x = 1 exactly) with one division fewer. `exponent` β is
+    a Python int (1 balance, 2 power), so r^β is a multiplication, not `pow`. 0 when both are 0."""
+    own_larger = own_pdf >= other_pdf
+    larger = jnp.where(own_larger, own_pdf, other_pdf)
+    smaller = jnp.where(own_larger, other_pdf, own_pdf)
+    positive = larger > 0
+    ratio = (smaller / jnp.where(positive, larger, 1.0)) ** exponent
+    return jnp.where(positive, jnp.where(own_larger, 1.0, ratio) / (1.0 + ratio), 0.0)
 
 
 class _Shading:
@@ -162,7 +166,7 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
     shading = _Shading(point, normal, wo, brdf, _as_tuple(lights), mode)
-    exponent = 1.0 if heuristic == "balance" else 2.0
+    exponent = 1 if heuristic == "balance" else 2
 
     def brdf_values(u, weighted):
         wi_local, radiance, pdf, light_pdf = shading.brdf_sample(u)
