@@ -327,7 +327,9 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
         global_mean = jnp.sum(sums + low, axis=0) / n
         shift = local_mean - global_mean
         m2 = jax.lax.psum(m.m2 + per_device * shift * shift, axes)
-        return _Moments(sums, low, m2, jax.lax.pmax(m.max_abs, axes),
+        # max |Y| is a diagnostic with no derivative (and pmax has no differentiation rule, so
+        # without the stop a gradient of a sharded estimate failed).
+        return _Moments(sums, low, m2, jax.lax.pmax(jax.lax.stop_gradient(m.max_abs), axes),
                         jax.lax.psum(m.sum_abs, axes), jnp.asarray(n, dtype))
 
     from jax.sharding import PartitionSpec

@@ -27,7 +27,7 @@ __all__ = ["estimate_mis", "estimate_ratio", "estimate_antithetic", "estimate_co
 
 def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequence[int], *,
                  heuristic: str = "balance", beta: float = 2.0, uniforms="random",
-                 mode: str = "attached", chunk_size: int | None = None, dtype=None) -> Estimate:
+                 mode: str = "attached", chunk_size: int | None = None, dtype=None, mesh=None) -> Estimate:
     """Multi-sample MIS: Σ_i (1/n_i) Σ_j w_i(x_ij) f(x_ij) / p_i(x_ij), x_ij ~ samplers[i].
 
     Weights (Veach 1997, eqs. 9.4 and 9.5), with q_k = n_k p_k(x):
@@ -35,7 +35,8 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     Both sum to 1 wherever some p_k > 0, so the estimate is unbiased. Each technique draws from
     its own key (split from `key`); techniques are independent, so stderr² = Σ_i stderr_i².
     All samplers must share a domain and measure. `mode="detached"` stops the gradient of the
-    sample, its density and every density in the weight together.
+    sample, its density and every density in the weight together. `mesh`: every technique's
+    samples are split over the mesh's devices, as in `jaxsample.estimate`.
     """
     check_choice("estimate_mis", "heuristic", heuristic, ("balance", "power"))
     check_choice("estimate_mis", "mode", mode, ("attached", "detached"))
@@ -43,7 +44,9 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     counts = [int(c) for c in counts]
     if len(samplers) != len(counts) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
-    exponent = 1.0 if heuristic == "balance" else beta
+    exponent = 1 if heuristic == "balance" else beta
+    if float(exponent).is_integer():
+        exponent = int(exponent)  # q ** 2 is a multiplication; q ** 2.0 would be lax.pow (exp, log)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     keys = jax.random.split(key, len(samplers))
     parts = []
@@ -59,7 +62,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
             return safe_div(fx * _broadcast_pdf(weight, fx), _broadcast_pdf(pdfs[i], fx))
 
         parts.append(run_stream(values_fn, sampler.uniform_dims, keys[i], count, uniforms=uniforms,
-                                chunk_size=chunk_size, dtype=dtype, owner="estimate_mis",
+                                chunk_size=chunk_size, dtype=dtype, owner="estimate_mis", mesh=mesh,
                                 out_shape=_out_shape(f, sampler, dtype)))
     total = sum(counts)
     stderr = safe_sqrt(sum(p.stderr * p.stderr for p in parts))
