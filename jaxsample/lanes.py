@@ -49,7 +49,7 @@ _ELEMENTWISE = frozenset("""
     reduce_precision add sub mul div rem pow max min nextafter atan2 and or xor shift_left
     shift_right_arithmetic shift_right_logical eq ne ge gt le lt select_n clamp copy copy_p
     igamma igammac random_gamma_grad bessel_i0e bessel_i1e polygamma zeta regularized_incomplete_beta
-    eq_to le_to lt_to mulhi
+    eq_to le_to lt_to mulhi stop_gradient
 """.split())
 
 _REDUCERS = {"reduce_sum": lax.add, "reduce_max": lax.max, "reduce_min": lax.min,
@@ -175,7 +175,9 @@ class _Evaluator:
         rule = _RULES.get(name)
         if rule is None and name in _ELEMENTWISE:
             rule = _elementwise
-        if rule is not None:
+        too_wide = any(int(np.prod(v.aval.shape, dtype=np.int64)) > MAX_LANES
+                       for v in eqn.outvars if hasattr(v.aval, "shape"))
+        if rule is not None and not too_wide:
             lanes = [self.as_lanes(x) if self.batched(x) else x for x in inputs]
             if all(x is not None for x in lanes):
                 result = rule(self, eqn, lanes)
@@ -224,14 +226,14 @@ def _cells_of(ev: _Evaluator, x, shape, dtype):
 def _elementwise(ev, eqn, inputs):
     shape = eqn.outvars[0].aval.shape
     prim = eqn.primitive
+    if prim.multiple_results:
+        return NotImplemented
     cells = [_cells_of(ev, x, shape, v.aval.dtype) for x, v in zip(inputs, eqn.invars)]
     try:  # size-1 axes broadcast (lax accepts (1,) against (3,))
         cells = [c if c.shape == shape else np.broadcast_to(c, shape) for c in cells]
     except ValueError:
         return NotImplemented
     outs = [prim.bind(*[ev.lane(c[idx]) for c in cells], **eqn.params) for idx in np.ndindex(shape)]
-    if prim.multiple_results:
-        return NotImplemented
     return _Lanes(_object_array(outs, shape), eqn.outvars[0].aval.dtype)
 
 

@@ -39,6 +39,8 @@ PROGRAMS = {
     "while": lambda x: jax.lax.fori_loop(0, 3, lambda i, v: v * x[1] + 1.0, x[0]),
     "relu": lambda x: jax.nn.relu(x) * jax.nn.softplus(x[2]),
     "pytree": lambda x: {"a": x[2], "b": (x[:2] ** 2, jnp.ones(()))},
+    "wide": lambda x: jnp.sum(jnp.sin(jnp.outer(jnp.linspace(0.0, 1.0, 40), x)), axis=0),  # > MAX_LANES
+    "stop_gradient": lambda x: jax.lax.stop_gradient(x) * x,
 }
 
 
@@ -58,7 +60,7 @@ def test_lane_map_equals_vmap(name, points):
         jax.tree_util.tree_map(lambda g, e: np.testing.assert_allclose(g, e, rtol=2e-6, atol=2e-6), got, expected)
 
 
-@pytest.mark.parametrize("name", ["matmul", "norm", "cross", "relu", "gather", "while"])
+@pytest.mark.parametrize("name", ["matmul", "norm", "cross", "relu", "gather", "while", "wide", "stop_gradient"])
 def test_lane_map_gradients_equal_vmap(name, points):
     """Reverse mode through the lane program gives vmap's gradients, for the input points and for
     a closed-over parameter (the custom rule of relu is kept: its derivative at 0 is 0)."""
