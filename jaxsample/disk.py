@@ -9,6 +9,7 @@ import numpy as np
 
 from . import concentric
 from ._base import Sampler, check_choice, check_parameter, pytree_dataclass
+from .rejection import select_first
 from .domains import Disk
 from .numerics import INV_PI, azimuth_fraction, safe_sqrt, sincos_2pi
 
@@ -65,9 +66,7 @@ class UniformDisk(Sampler):
             return jnp.stack([x, y], axis=-1)
         points = 2.0 * u[..., :-2].reshape(u.shape[:-1] + (self.tries, 2)) - 1.0
         accepted = jnp.sum(points * points, axis=-1) < 1.0
-        first = jnp.argmax(accepted, axis=-1)
-        chosen = jnp.take_along_axis(points, first[..., None, None], axis=-2)[..., 0, :]
-        return jnp.where(jnp.any(accepted, axis=-1, keepdims=True), chosen, _polar(u[..., -2:]))
+        return select_first(points, accepted, _polar(u[..., -2:]))
 
     def warp_with_pdf(self, u):
         x = self.warp(u)

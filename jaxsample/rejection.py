@@ -12,6 +12,24 @@ import numpy as np
 from ._base import Sampler, check_parameter, draw, pytree_dataclass
 
 
+def select_first(candidates, accepted, fallback):
+    """The first accepted candidate along the tries axis, else `fallback`.
+
+    `accepted` has shape (..., tries); `candidates` and `fallback` are pytrees whose leaves have
+    shapes (..., tries, *e) and (..., *e). Written as a chain of selects from the last try to the
+    first, it is elementwise (no argmax, no gather), so it fuses with the proposals around it
+    (`jaxsample.lanes`); the result is exactly that of argmax + take_along_axis + where(any).
+    """
+    tries = accepted.shape[-1]
+    out = fallback
+    for k in reversed(range(tries)):
+        def pick(candidate, current, k=k):
+            mask = accepted[..., k].reshape(accepted.shape[:-1] + (1,) * (current.ndim - accepted.ndim + 1))
+            return jnp.where(mask, jnp.take(candidate, k, axis=accepted.ndim - 1), current)
+        out = jax.tree_util.tree_map(pick, candidates, out)
+    return out
+
+
 @pytree_dataclass
 class RejectionInfo:
     """Per sample: whether some try was accepted (`accepted`), and how many of the `tries`
@@ -79,15 +97,10 @@ class Rejection(Sampler):
         blocks = u[..., : self.tries * (dims + 1)].reshape(u.shape[:-1] + (self.tries, dims + 1))
         x, q = self.proposal.warp_with_pdf(blocks[..., :dims])
         passed = blocks[..., dims] * self.bound * q < self.target_pdf(x)
-        first = jnp.argmax(passed, axis=-1)
-        event_axes = len(self.event_shape)
-        index = first.reshape(first.shape + (1,) * (1 + event_axes))
-        chosen = jnp.take_along_axis(x, index, axis=u.ndim - 1).squeeze(u.ndim - 1)
         tail = u[..., -self._tail_dims:]
         spare = (self.fallback if self.fallback is not None else self.proposal).warp(tail)
-        accepted = jnp.any(passed, axis=-1)
-        out = jnp.where(accepted.reshape(accepted.shape + (1,) * event_axes), chosen, spare)
-        return out, RejectionInfo(accepted, jnp.sum(passed, axis=-1, dtype=jnp.int32))
+        out = select_first(x, passed, spare)
+        return out, RejectionInfo(jnp.any(passed, axis=-1), jnp.sum(passed, axis=-1, dtype=jnp.int32))
 
     def warp(self, u):
         return self.warp_with_info(u)[0]

@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 
 from ._base import Sampler, check_choice, check_parameter, pytree_dataclass
+from .rejection import select_first
 from .domains import Directions
 from .numerics import (INV_2PI, INV_4PI, azimuth_fraction, one_minus_cos_theta, safe_sqrt,
                        spherical_direction)
@@ -53,12 +54,9 @@ class UniformSphere(Sampler):
         points = 2.0 * u[..., :-2].reshape(u.shape[:-1] + (self.tries, 3)) - 1.0
         r2 = jnp.sum(points * points, axis=-1)
         accepted = (r2 <= 1.0) & (r2 >= 1e-4)
-        first = jnp.argmax(accepted, axis=-1)
-        chosen = jnp.take_along_axis(points, first[..., None, None], axis=-2)[..., 0, :]
-        chosen_r2 = jnp.take_along_axis(r2, first[..., None], axis=-1)
-        any_accepted = jnp.any(accepted, axis=-1, keepdims=True)
-        safe_r2 = jnp.where(any_accepted, chosen_r2, 1.0)
-        return jnp.where(any_accepted, chosen / jnp.sqrt(safe_r2), fallback)
+        # The fallback (a unit vector) carries r² = 1, so one normalisation serves both outcomes.
+        chosen, chosen_r2 = select_first((points, r2), accepted, (fallback, jnp.ones_like(r2[..., 0])))
+        return chosen / jnp.sqrt(chosen_r2)[..., None]
 
     def pdf(self, x):
         return jnp.full(x.shape[:-1], INV_4PI, dtype=jnp.result_type(x, float))
