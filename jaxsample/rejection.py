@@ -25,7 +25,7 @@ def select_first(candidates, accepted, fallback):
     for k in reversed(range(tries)):
         def pick(candidate, current, k=k):
             mask = accepted[..., k].reshape(accepted.shape[:-1] + (1,) * (current.ndim - accepted.ndim + 1))
-            return jnp.where(mask, jnp.take(candidate, k, axis=accepted.ndim - 1), current)
+            return jnp.where(mask, jax.lax.index_in_dim(candidate, k, accepted.ndim - 1, keepdims=False), current)
         out = jax.tree_util.tree_map(pick, candidates, out)
     return out
 
