@@ -15,6 +15,7 @@ from .disk import UniformDisk
 from .estimate import Estimate, estimate, integrand_values
 from .estimators import estimate_antithetic, estimate_control_variate, estimate_mis, estimate_ratio
 from .gradients import expectation, expectation_values
+from .gradient_errors import estimate_grad, expectation_grad
 from .exponential import Exponential, TruncatedExponential
 from .frame import Frame
 from .mixture import Mixture
@@ -43,7 +44,7 @@ __all__ = [
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
     "estimate_control_variate", "integrand_values",
     # gradients
-    "expectation", "expectation_values",
+    "expectation", "expectation_values", "estimate_grad", "expectation_grad",
     # modules
     "domains", "gradients", "numerics", "quadrature", "scene", "testing", "uniforms",
 ]

@@ -244,6 +244,17 @@ MUTATIONS = [
       "results.append(jnp.stack(parts, axis=0).reshape((chunk,) + layout[0][k][2]))",
       ("tests/test_lanes.py::test_sample_is_the_warp_of_the_stream",),
       "sample() returns the groups one after the other instead of interleaved (not the stream order)"),
+    # ---- gradients with error bars (issue 15) ----
+    M("gradient-stderr-x3", "jaxsample/gradient_errors.py",
+      "stderr=unravel(est.stderr)",
+      "stderr=unravel(3.0 * est.stderr)",
+      ("tests/test_gradient_errors.py",),
+      "the gradient's standard error three times too large (intervals cover too often)"),
+    M("gradient-of-the-wrong-thing", "jaxsample/gradient_errors.py",
+      "return point_value(f, s, row)",
+      "return point_value(f, s, row) * (1.0 + 0.01 * theta[0])",
+      ("tests/test_gradient_errors.py",),
+      "the per-sample gradient is not that of the estimate's value"),
 ]
 
 
