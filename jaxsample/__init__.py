@@ -16,6 +16,7 @@ from .estimate import Estimate, estimate, integrand_values
 from .estimators import estimate_antithetic, estimate_control_variate, estimate_mis, estimate_ratio
 from .gradients import expectation, expectation_values
 from .gradient_errors import estimate_grad, expectation_grad
+from .until import EstimateUntil, estimate_until
 from .exponential import Exponential, TruncatedExponential
 from .frame import Frame
 from .mixture import Mixture
@@ -42,7 +43,7 @@ __all__ = [
     "Rejection", "RejectionInfo", "Transformed", "Mixture", "Sampler",
     # estimators
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
-    "estimate_control_variate", "integrand_values",
+    "estimate_control_variate", "integrand_values", "estimate_until", "EstimateUntil",
     # gradients
     "expectation", "expectation_values", "estimate_grad", "expectation_grad",
     # modules

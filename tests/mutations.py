@@ -255,6 +255,16 @@ MUTATIONS = [
       "return point_value(f, s, row) * (1.0 + 0.01 * theta[0])",
       ("tests/test_gradient_errors.py",),
       "the per-sample gradient is not that of the estimate's value"),
+    M("until-loose-tolerance", "jaxsample/until.py",
+      "met = jnp.all(stderr <= tolerance)",
+      "met = jnp.all(stderr <= 2.0 * tolerance)",
+      ("tests/test_until.py",),
+      "estimate_until stops before its standard error meets the tolerance"),
+    M("until-sobol-not-at-nets", "jaxsample/until.py",
+      "return (per & (per - 1)) == 0",
+      "return per > 0",
+      ("tests/test_until.py",),
+      "estimate_until stops Sobol' points between nets"),
 ]
 
 
