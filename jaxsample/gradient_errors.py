@@ -25,18 +25,18 @@ from jax.flatten_util import ravel_pytree
 
 from ._base import check_choice
 from .estimate import Estimate, integrand_values, run_stream
-from .gradients import _GRADIENTS, expectation_values
+from .gradients import _GRADIENTS, expectation_values, uniform_dims
 
 __all__ = ["estimate_grad", "expectation_grad"]
 
 
-def _per_sample_gradients(make, params, key, n, point_value, owner, **kw) -> Estimate:
+def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0, **kw) -> Estimate:
     """Stream ∇θ of point_value(f_or_g, sampler, u_row) over n points; Estimate shaped like params."""
     flat, unravel = ravel_pytree(params)
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"{owner}: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
     fn, sampler = make(params)
-    dims = sampler.uniform_dims
+    dims = sampler.uniform_dims + extra_dims
     out = jax.eval_shape(lambda u: point_value(fn, sampler, u), jax.ShapeDtypeStruct((dims,), flat.dtype))
     if out.shape != ():
         raise ValueError(f"{owner}: the integrand must return a scalar (one value per sample); got shape "
@@ -80,8 +80,8 @@ def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: j
     """∇θ E_{p_θ}[g] by the chosen per-sample estimator, with its standard error; `(g, sampler) =
     make(θ)`, θ = `params` (a pytree of floats).
 
-    `gradient`: "pathwise" or "score" (as in `jaxsample.expectation`); `baseline`: a constant for
-    "score" (held constant). The leave-one-out baseline couples the samples (each one's baseline
+    `gradient`: "pathwise", "score" or "measure_valued" (PhongLobe's exponent; as in
+    `jaxsample.expectation`); `baseline`: a constant for "score" (held constant). The leave-one-out baseline couples the samples (each one's baseline
     is the mean of the others), so its gradient is not a mean of independent per-sample terms:
     use `jax.grad` of `expectation(..., baseline="leave_one_out")` for its value (ValueError here).
     """
@@ -96,5 +96,6 @@ def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: j
     def point_value(g, sampler, row):
         return expectation_values(g, sampler, row[None], gradient=gradient, baseline=baseline)[0]
 
-    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", uniforms=uniforms,
-                                 mesh=mesh, chunk_size=chunk_size, dtype=dtype)
+    extra = uniform_dims(make(params)[1], gradient) - make(params)[1].uniform_dims
+    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", extra_dims=extra,
+                                 uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype)

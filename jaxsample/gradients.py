@@ -22,7 +22,12 @@ Two different questions share the words "gradient of a Monte Carlo estimate" (Mo
      held constant, with a baseline b that does not depend on x (a constant, or the leave-one-out
      mean of the other samples). Needs only log p differentiable in θ; g may be a black box.
 
-   Both are written as *surrogates* whose value is the plain Monte Carlo mean of g and whose
+   - "measure_valued" (Mohamed et al. 2020, section 6), for the Phong lobe's exponent: the
+     derivative of the density in n is (1/m)(p_n - q_n), q_n the density of cos θ as the product of
+     two draws, so ∇n E[g] = (1/m)(E_{p_n}[g] - E_{q_n}[g]): g need not be differentiable and no
+     density is differentiated (`PhongLobe.measure_valued_pair`; unbiased, samples held constant).
+
+   All are written as *surrogates* whose value is the plain Monte Carlo mean of g and whose
    derivative is the chosen estimator, so one `jax.grad` gives the gradient and the returned
    `Estimate` still reports E[g] with its standard error. For the score function the per-sample
    surrogate is g(x̄) + (log p(x̄) - sg(log p(x̄))) · sg(g(x̄) - b), x̄ = sg(T(u; θ)), where sg is
@@ -45,7 +50,7 @@ from .estimate import Estimate, integrand_values, run_stream
 
 __all__ = ["expectation", "expectation_values", "integrand_values"]
 
-_GRADIENTS = ("pathwise", "score")
+_GRADIENTS = ("pathwise", "score", "measure_valued")
 
 
 def _detached_log_pdf(sampler, x):
@@ -63,6 +68,29 @@ def _broadcast(a, like):
     return a.reshape(a.shape + (1,) * (like.ndim - a.ndim))
 
 
+def uniform_dims(sampler, gradient: str) -> int:
+    """Uniforms per sample for `gradient`: the sampler's, one more for "measure_valued"."""
+    return sampler.uniform_dims + (1 if gradient == "measure_valued" else 0)
+
+
+def _measure_valued_values(g, sampler, u):
+    """Surrogate g(x̄) + (n - sg(n)) · sg(c (g(x̄) - g(x̄'))): its value is g(x̄), its derivative
+    in the exponent n the measure-valued estimator, and g's own parameters differentiate through
+    g(x̄) (samples x̄, x̄' held constant)."""
+    from .phong import PhongLobe
+
+    if not isinstance(sampler, PhongLobe):
+        raise ValueError("expectation: gradient='measure_valued' is available for PhongLobe (its exponent); "
+                         f"got {type(sampler).__name__}, which has no measure-valued decomposition here: "
+                         "use 'pathwise' or 'score'")
+    x, x_product, c = sampler.measure_valued_pair(u)
+    x, x_product = jax.lax.stop_gradient((x, x_product))
+    gx, gx_product = jax.vmap(g)(x), jax.vmap(g)(x_product)
+    exponent = jnp.asarray(sampler.exponent, gx.dtype)
+    tangent = exponent - jax.lax.stop_gradient(exponent)
+    return gx + tangent * jax.lax.stop_gradient(jnp.asarray(c, gx.dtype) * (gx - gx_product))
+
+
 def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
                        gradient: str = "pathwise", baseline: Any = None) -> jax.Array:
     """Per-sample surrogate values for E_{p_θ}[g] from a (count, uniform_dims) block of uniforms.
@@ -73,10 +101,12 @@ def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Arra
     leave-one-out baseline couples samples, so it exists only in `expectation`.
     """
     check_choice("expectation", "gradient", gradient, _GRADIENTS)
+    if gradient != "score" and baseline is not None:
+        raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
     if gradient == "pathwise":
-        if baseline is not None:
-            raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
         return jax.vmap(g)(sampler.warp(u))
+    if gradient == "measure_valued":
+        return _measure_valued_values(g, sampler, u)
     if isinstance(baseline, str):
         raise ValueError("expectation_values: a string 'baseline' (leave_one_out) needs the whole "
                          "sample; use expectation")
@@ -98,8 +128,10 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         close over θ too: both estimators then add its explicit derivative.
       sampler: any `jaxsample.Sampler`; its parameters are the θ that `jax.grad` sees.
       key, n, uniforms, mesh, chunk_size, dtype: as in `jaxsample.estimate`.
-      gradient: "pathwise" (default; through the warp) or "score" (through log p of a detached
-        sample). Both have the value mean(g); see the module docstring for when each is unbiased.
+      gradient: "pathwise" (default; through the warp), "score" (through log p of a detached
+        sample) or "measure_valued" (PhongLobe only: the exponent's derivative as a scaled
+        difference of two densities, `PhongLobe.measure_valued_pair`; one more uniform per sample).
+        All have the value mean(g); see the module docstring for when each is unbiased.
       baseline: score only. None (no baseline), a constant (array broadcastable to g's value;
         held constant: a baseline that depends on θ is stopped) or "leave_one_out": sample i uses
         the mean of the other n - 1 samples, b_i = (S - g_i)/(n - 1), independent of x_i, so the
@@ -119,10 +151,10 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         if gradient != "score":
             raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
         baseline = jax.lax.stop_gradient(jnp.asarray(baseline))
-    dims = sampler.uniform_dims
+    dims = uniform_dims(sampler, gradient)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     out_shape = tuple(jax.eval_shape(lambda u: g(sampler.warp(u)),
-                                     jax.ShapeDtypeStruct((dims,), dtype)).shape)
+                                     jax.ShapeDtypeStruct((sampler.uniform_dims,), dtype)).shape)
     common = dict(uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype,
                   owner="expectation")
 

@@ -49,6 +49,23 @@ class PhongLobe(Sampler):
         n = self.exponent
         return x, (n + 1.0) * INV_2PI * jnp.exp(n * log_cos)
 
+    def measure_valued_pair(self, u):
+        """(x, x', c) for the measure-valued derivative in the exponent, from u (..., 3).
+
+        With μ = cos θ, the density of μ is m μ^n on [0, 1] (m = n + 1), and
+        d/dn (m μ^n) = (1/m) (m μ^n - m² μ^n (-ln μ)); the second density is that of the product
+        of two independent draws of μ (Mohamed et al. 2020, section 6; docs/reference.md). So
+        d/dn E[g] = c (E[g(x)] - E[g(x')]) with c = 1/m, x ~ p_n and x' with cos θ' = μ₁ μ₂ and a
+        uniform azimuth. x' reuses x's draw μ₁ = μ and azimuth (a coupling: the difference has
+        far less variance than two independent terms) and takes μ₂ from u₂. log μ' = log μ₁ +
+        log μ₂, so 1 - μ' = -expm1(log μ') keeps full precision near the pole.
+        """
+        log_cos = self._log_cos_from_u(u[..., 0])
+        log_cos_product = log_cos + self._log_cos_from_u(u[..., 2])
+        x = direction_from_one_minus_cos(-jnp.expm1(log_cos), u[..., 1])
+        x_product = direction_from_one_minus_cos(-jnp.expm1(log_cos_product), u[..., 1])
+        return x, x_product, 1.0 / (self.exponent + 1.0)
+
     def log_pdf(self, x):
         n = self.exponent
         upper = x[..., 2] > 0

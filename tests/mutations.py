@@ -265,6 +265,11 @@ MUTATIONS = [
       "return per > 0",
       ("tests/test_until.py",),
       "estimate_until stops Sobol' points between nets"),
+    M("measure-valued-independent-pair", "jaxsample/phong.py",
+      "log_cos_product = log_cos + self._log_cos_from_u(u[..., 2])",
+      "log_cos_product = self._log_cos_from_u(u[..., 2])",
+      ("tests/test_gradient_errors.py",),
+      "the measure-valued pair draws cos θ' from p_n instead of the product of two draws (biased)"),
 ]
 
 

@@ -1,7 +1,10 @@
 """Gradients with error bars (issue 15, part 1): `estimate_grad` and `expectation_grad`.
 
 References (docs/reference.md): for d/dn E_{p_n}[cos^k θ] = k/(n+k+1)² under the Phong lobe, the
-per-sample variances at n = 5, k = 2 are 3.5677e-4 (pathwise) and 7.6901e-3 (score).
+per-sample variances at n = 5, k = 2 are 3.5677e-4 (pathwise) and 7.6901e-3 (score). The
+measure-valued estimator's per-sample value is μ^k (1 - μ₂^k)/m (μ, μ₂ independent draws of
+cos θ, m = n + 1; `PhongLobe.measure_valued_pair`), with E[μ^j] = m/(m + j), so its variance is
+(m/(m+2k)) (1 - 2m/(m+k) + m/(m+2k)) / m² - (k/(m+k)²)² = 6.9010e-4 at n = 5, k = 2.
 """
 
 import jax
@@ -13,14 +16,17 @@ import jaxsample as js
 
 EXPONENT, POWER = 5.0, 2
 EXACT_GRADIENT = POWER / (EXPONENT + POWER + 1.0) ** 2
-EXACT_VARIANCE = {"pathwise": 3.5677e-4, "score": 7.6901e-3}
+_M = EXPONENT + 1.0
+EXACT_VARIANCE = {"pathwise": 3.5677e-4, "score": 7.6901e-3,
+                  "measure_valued": (_M / (_M + 2 * POWER)) * (1 - 2 * _M / (_M + POWER) + _M / (_M + 2 * POWER)) / _M ** 2
+                  - (POWER / (_M + POWER) ** 2) ** 2}
 
 
 def phong_cos2(exponent):
     return (lambda w: w[2] ** POWER, js.PhongLobe(exponent))
 
 
-@pytest.mark.parametrize("gradient", ["pathwise", "score"])
+@pytest.mark.parametrize("gradient", ["pathwise", "score", "measure_valued"])
 def test_expectation_grad_is_the_gradient_of_the_same_estimate(gradient):
     """Same samples: the mean of the streamed per-sample gradients is what jax.grad gives."""
     key = jax.random.key(0)
@@ -55,7 +61,7 @@ def test_estimate_grad_has_the_structure_of_params(uniforms):
     assert float(detached.mean["n"]) == 0.0 and float(detached.stderr["n"]) == 0.0  # θ-free f
 
 
-@pytest.mark.parametrize("gradient", ["pathwise", "score"])
+@pytest.mark.parametrize("gradient", ["pathwise", "score", "measure_valued"])
 def test_gradient_stderr_matches_the_exact_variance_and_its_intervals_cover(gradient):
     """Over K = 2000 keys at n = 1024: (1) the pooled per-sample variance n·stderr² is the exact
     one within 5 % (its relative sd here is < 0.5 %, so the false-failure rate is negligible);
@@ -92,5 +98,7 @@ def test_bad_inputs_raise():
         js.expectation_grad(phong_cos2, EXPONENT, key, 64, gradient="score", baseline="leave_one_out")
     with pytest.raises(ValueError, match="baseline"):
         js.expectation_grad(phong_cos2, EXPONENT, key, 64, gradient="pathwise", baseline=1.0)
+    with pytest.raises(ValueError, match="measure_valued"):
+        js.expectation_grad(lambda p: (lambda w: w[2], js.VonMisesFisher(p)), 3.0, key, 64, gradient="measure_valued")
     with pytest.raises(TypeError, match="floats"):
         js.estimate_grad(lambda p: (lambda w: w[2], js.CosineHemisphere()), jnp.int32(3), key, 64)
