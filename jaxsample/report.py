@@ -11,7 +11,8 @@ Sections (each computed by a piece in `benchmarks/`, runnable alone):
   4. baselines: vectorized NumPy and the uniform-generation floor, as ratios (`baselines.py`),
      and the speed of every public path against its target (`paths.py`);
   5. the curse of dimensionality: quadrature against Monte Carlo and Sobol' (`dimensionality.py`);
-  6. gradients: variance and cost per gradient estimator (`bench_gradients.py`);
+  6. gradients: variance and cost per gradient estimator (`bench_gradients.py`), gradients with
+     their standard errors and estimates to a requested accuracy (`gradient_error_bars.py`);
   7. hard cases: non-finite values/gradients and float32 error at extreme parameters (`hard_cases.py`);
   8. the scene: the inverse problem solved by gradient descent (`inverse_problem.py`).
 
@@ -204,6 +205,21 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         md += ["## Gradient estimators\n", gradients.markdown_table(grad_rows)]
     except (ImportError, AttributeError) as error:
         md += ["## Gradient estimators\n", f"Not available in this checkout ({error}).\n"]
+
+    if tiny:
+        md += ["## Gradients with error bars; estimates to a requested accuracy\n",
+               "Skipped in --tiny mode (run `python benchmarks/gradient_error_bars.py`).\n"]
+    else:
+        error_bars = _piece("gradient_error_bars")
+        bar_rows = error_bars.gradient_table(quick=quick, progress=progress)
+        accuracy_rows = error_bars.accuracy_table(quick=quick, progress=progress)
+        _write_csv(out / "gradient_error_bars.csv", bar_rows)
+        _write_csv(out / "accuracy.csv", accuracy_rows)
+        md += ["## Gradients with error bars; estimates to a requested accuracy\n",
+               "d/dn E_{Phong(n)}[cos^k] by `expectation_grad` (gradient ± its reported stderr, exact value, "
+               "per-sample variance, and 1/(variance × time): gradient accuracy per second); then "
+               "`estimate_until` at requested relative standard errors.\n",
+               error_bars.markdown(bar_rows, accuracy_rows)]
 
     hard = _piece("hard_cases")
     progress("[hard cases]")
