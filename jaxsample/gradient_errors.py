@@ -25,7 +25,8 @@ from jax.flatten_util import ravel_pytree
 
 from ._base import check_choice
 from .estimate import Estimate, integrand_values, run_stream
-from .gradients import _GRADIENTS, expectation_values, uniform_dims
+from .gradients import (_GRADIENTS, _broadcast, _detached_log_pdf, expectation, expectation_values,
+                        uniform_dims)
 
 __all__ = ["estimate_grad", "expectation_grad"]
 
@@ -81,21 +82,43 @@ def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: j
     make(θ)`, θ = `params` (a pytree of floats).
 
     `gradient`: "pathwise", "score" or "measure_valued" (PhongLobe's exponent; as in
-    `jaxsample.expectation`); `baseline`: a constant for "score" (held constant). The leave-one-out baseline couples the samples (each one's baseline
+    `jaxsample.expectation`); `baseline`, score only: a constant for "score" (held constant). The leave-one-out baseline couples the samples (each one's baseline
     is the mean of the others), so its gradient is not a mean of independent per-sample terms:
     use `jax.grad` of `expectation(..., baseline="leave_one_out")` for its value (ValueError here).
     """
     check_choice("expectation_grad", "gradient", gradient, _GRADIENTS)
-    if isinstance(baseline, str):
-        raise ValueError("expectation_grad: baseline='leave_one_out' has no per-sample gradient (its "
-                         "baseline is the mean of the other samples); use a constant baseline, or "
-                         "jax.grad of jaxsample.expectation(..., baseline='leave_one_out') without an error bar")
     if baseline is not None and gradient != "score":
         raise ValueError("expectation_grad: parameter 'baseline' applies to gradient='score' only")
+    common = dict(uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype)
+    if isinstance(baseline, str):
+        check_choice("expectation_grad", "baseline", baseline, ("leave_one_out",))
+        return _leave_one_out(make, params, key, n, common)
 
     def point_value(g, sampler, row):
         return expectation_values(g, sampler, row[None], gradient=gradient, baseline=baseline)[0]
 
     extra = uniform_dims(make(params)[1], gradient) - make(params)[1].uniform_dims
-    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", extra_dims=extra,
-                                 uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype)
+    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", extra_dims=extra, **common)
+
+
+def _leave_one_out(make, params, key, n, common) -> Estimate:
+    """The score function with the leave-one-out baseline, as a mean of per-sample terms.
+
+    `expectation`'s gradient is mean(∇g) + n/(n-1) (mean(g ∇log p) - ḡ mean(∇log p)), ḡ the mean
+    of g over all n samples, which is exactly the mean of h_i = ∇g_i + n/(n-1) (g_i - ḡ) ∇log p_i.
+    So a first pass over the samples gives ḡ, a second streams the h_i on the same samples. The
+    h_i share ḡ, so they are not quite independent: the stderr from their spread is the usual
+    large-n (delta-method) standard error, off by O(1/n).
+    """
+    g, sampler = make(params)
+    mean_g = jax.lax.stop_gradient(expectation(g, sampler, jax.random.clone(key), n, **common).mean)
+    scale = n / (n - 1.0)
+
+    def point_value(g, sampler, row):
+        x = jax.lax.stop_gradient(sampler.warp(row[None]))
+        gx = jax.vmap(g)(x)
+        log_p = _detached_log_pdf(sampler, x)
+        score = _broadcast(log_p - jax.lax.stop_gradient(log_p), gx)
+        return (gx + score * jax.lax.stop_gradient(scale * (gx - mean_g)))[0]
+
+    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", **common)
