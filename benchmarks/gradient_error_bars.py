@@ -13,26 +13,14 @@ Run alone: `python benchmarks/gradient_error_bars.py [--quick]`.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
 
 import jax
 import numpy as np
 
 import jaxsample as js
+from timing import median_seconds
 
 GRADIENTS = ("pathwise", "score", "measure_valued")
-
-
-def _seconds(fn, key, repeats=3):
-    keys = jax.random.split(key, repeats + 1)
-    jax.block_until_ready(fn(keys[0]))
-    times = []
-    for k in keys[1:]:
-        start = time.perf_counter()
-        jax.block_until_ready(fn(k))
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def gradient_table(quick: bool = True, progress=print) -> list[dict]:
@@ -46,7 +34,7 @@ def gradient_table(quick: bool = True, progress=print) -> list[dict]:
             run = jax.jit(lambda key, g=gradient, make=make, e=exponent:
                           js.expectation_grad(make, e, key, n_samples, gradient=g))
             est = run(jax.random.key(7))
-            seconds = _seconds(run, jax.random.key(8))
+            seconds = median_seconds(run, jax.random.key(8))
             variance = float(est.stderr) ** 2 * n_samples
             rows.append({"exponent": exponent, "power": power, "estimator": gradient, "n": n_samples,
                          "gradient": float(est.mean), "stderr": float(est.stderr), "exact": exact,

@@ -89,8 +89,7 @@ class Estimate:
 
     def interval(self, level: float = 0.95) -> tuple[jax.Array, jax.Array]:
         """Normal-approximation interval mean ± z stderr (z = 1.96 for 95%)."""
-        z = _normal_quantile(0.5 + 0.5 * level)
-        return self.mean - z * self.stderr, self.mean + z * self.stderr
+        return normal_interval(self.mean, self.stderr, level)
 
     def chebyshev_interval(self, level: float = 0.95) -> tuple[jax.Array, jax.Array]:
         """Distribution-free interval mean ± k stderr with k = 1/sqrt(1 - level) (4.47 for 95%).
@@ -100,6 +99,12 @@ class Estimate:
         """
         k = 1.0 / math.sqrt(1.0 - level)
         return self.mean - k * self.stderr, self.mean + k * self.stderr
+
+
+def normal_interval(mean, stderr, level: float = 0.95):
+    """mean ± z stderr with z the normal quantile of (1 + level)/2 (1.96 for 95 %)."""
+    z = _normal_quantile(0.5 + 0.5 * level)
+    return mean - z * stderr, mean + z * stderr
 
 
 def _normal_quantile(p: float) -> float:

@@ -28,8 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._base import check_choice, default_float_dtype, pytree_dataclass
-from .estimate import (_chunk_moments, _empty_moments, _lane_values, _merge, _Moments, _normal_quantile,
-                       integrand_values)
+from .estimate import (_chunk_moments, _empty_moments, _lane_values, _merge, _Moments, integrand_values,
+                       normal_interval)
 from .doublefloat import _float64_available
 from .numerics import safe_div, safe_sqrt
 from .uniforms import Random, Sobol, as_source, seed_from_key
@@ -57,8 +57,8 @@ class EstimateUntil:
     replicates: int = 1
 
     def interval(self, level: float = 0.95):
-        z = _normal_quantile(0.5 + 0.5 * level)
-        return self.mean - z * self.stderr, self.mean + z * self.stderr
+        """Normal-approximation interval mean ± z stderr (see the module docstring on coverage)."""
+        return normal_interval(self.mean, self.stderr, level)
 
 
 def _statistics(m: _Moments, count, replicates: int):
