@@ -225,7 +225,7 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
     fn = getattr(sampler, method)
 
     def one_chunk(offset):
-        groups = Random().lanes(seed, offset, chunk, dims, dtype, aligned=True)
+        groups = Random().lanes(seed, offset, chunk, dims, dtype, aligned=chunk)
         per_group = chunk // len(groups)
         outputs = [lane_map(fn, per_group)(lanes) for lanes in groups]
         leaves = [jax.tree_util.tree_leaves(o) for o in outputs]

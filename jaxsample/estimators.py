@@ -17,6 +17,7 @@ from typing import Callable, Sequence
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._base import check_choice, default_float_dtype
 from .estimate import Estimate, _broadcast_pdf, _detach, run_stream
@@ -45,7 +46,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     if len(samplers) != len(counts) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
     exponent = 1 if heuristic == "balance" else beta
-    if float(exponent).is_integer():
+    if isinstance(exponent, (int, float, np.integer, np.floating)) and float(exponent).is_integer():
         exponent = int(exponent)  # q ** 2 is a multiplication; q ** 2.0 would be lax.pow (exp, log)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     keys = jax.random.split(key, len(samplers))

@@ -19,15 +19,17 @@ which it fuses into a single loop. Nothing is approximated: every lane computes 
 operations as the vmapped program (sums of a dot product in index order), so values and
 gradients agree to float rounding, and autodiff, `jit` and `vmap` see ordinary JAX operations.
 
-Anything else (gathers, loops, sorts, custom derivative rules, per-point values with more than
-`MAX_LANES` elements) is evaluated as before, by `jax.vmap` of that one primitive on the stacked
-(count, *S) array, so every program works and only the supported part is rewritten. `pjit`
-calls (functions under `jax.jit`) are inlined.
+Anything else (gathers, loops, sorts, custom derivative rules, an operation with an operand or
+result of more than `MAX_LANES` elements per point, a dot_general of more than `_MAX_TERMS`
+multiply-adds, elementwise work on values already stacked) is evaluated as before, by `jax.vmap`
+of that one primitive on the stacked (points, *S) arrays, so every program works and only the
+small-vector part is rewritten; a rule that cannot handle its inputs falls back the same way.
+`pjit` calls (functions under `jax.jit`) are inlined. Tuple inputs are coordinate columns of one
+dtype (the first column's).
 """
 
 from __future__ import annotations
 
-import itertools
 from typing import Callable
 
 import jax
@@ -41,13 +43,15 @@ __all__ = ["lane_map", "MAX_LANES"]
 # Per-point values with more elements than this stay stacked (count, *S) arrays: unrolling a
 # (1000,) per-point vector into 1000 lanes would trade a tight loop for a huge program.
 MAX_LANES = 64
+# ... and a dot_general with more multiply-adds than this stays a dot (64x64 weights: 4096).
+_MAX_TERMS = 4 * MAX_LANES
 
 _ELEMENTWISE = frozenset("""
     neg sign floor ceil round is_finite exp exp2 log expm1 log1p tanh logistic sin cos tan asin
     acos atan sinh cosh asinh acosh atanh lgamma digamma erf erfc erf_inv real imag complex conj
     abs sqrt rsqrt cbrt not population_count clz integer_pow square convert_element_type
     reduce_precision add sub mul div rem pow max min nextafter atan2 and or xor shift_left
-    shift_right_arithmetic shift_right_logical eq ne ge gt le lt select_n clamp copy copy_p
+    shift_right_arithmetic shift_right_logical eq ne ge gt le lt select_n clamp copy
     igamma igammac random_gamma_grad bessel_i0e bessel_i1e polygamma zeta regularized_incomplete_beta
     eq_to le_to lt_to mulhi stop_gradient
 """.split())
@@ -80,6 +84,11 @@ class _Stacked:
         self.array = array
 
 
+def _size(var) -> int:
+    shape = getattr(var.aval, "shape", ())
+    return int(np.prod(shape, dtype=np.int64))
+
+
 def _bind(prim, params, operands):
     """prim.bind with the parameters as `jax.core.eval_jaxpr` passes them (call primitives turn
     their jaxpr parameters into functions; older JAX returns those as a separate list)."""
@@ -103,7 +112,7 @@ class _Evaluator:
 
     # -- conversions --------------------------------------------------------------------------
 
-    def lane(self, value, dtype=None):
+    def lane(self, value):
         """One element's array over the points: lanes as they are, constants broadcast."""
         value = jnp.asarray(value)
         if value.shape == self.lane_shape:
@@ -175,12 +184,18 @@ class _Evaluator:
         rule = _RULES.get(name)
         if rule is None and name in _ELEMENTWISE:
             rule = _elementwise
-        too_wide = any(int(np.prod(v.aval.shape, dtype=np.int64)) > MAX_LANES
-                       for v in eqn.outvars if hasattr(v.aval, "shape"))
-        if rule is not None and not too_wide:
+        too_wide = any(_size(v) > MAX_LANES for v in list(eqn.outvars) + list(eqn.invars))
+        # A value the fallback already stacked stays stacked through elementwise work: XLA is fast
+        # on elementwise (points, *S) arrays; only mixing the small axes (dots, reductions,
+        # rearrangements) needed lanes.
+        stacked_elementwise = rule is _elementwise and any(isinstance(x, _Stacked) for x in inputs)
+        if rule is not None and not too_wide and not stacked_elementwise:
             lanes = [self.as_lanes(x) if self.batched(x) else x for x in inputs]
             if all(x is not None for x in lanes):
-                result = rule(self, eqn, lanes)
+                try:
+                    result = rule(self, eqn, lanes)
+                except (TypeError, ValueError):
+                    result = NotImplemented  # a gap in a rule: vmap is always right
                 if result is not NotImplemented:
                     return result
         return self.fallback(eqn, inputs)
@@ -265,10 +280,6 @@ def _reshape(ev, eqn, inputs):
 
 
 def _squeeze(ev, eqn, inputs):
-    return _rearranged(eqn, inputs[0].cells.reshape(eqn.outvars[0].aval.shape))
-
-
-def _expand_dims(ev, eqn, inputs):
     return _rearranged(eqn, inputs[0].cells.reshape(eqn.outvars[0].aval.shape))
 
 
@@ -378,8 +389,9 @@ def _dot_general(ev, eqn, inputs):
     k = int(np.prod(lhs_t.shape[nb + len(lhs_free):], dtype=np.int64))
     lhs_m = lhs_t.reshape(batch_shape + lf_shape + (k,))
     rhs_m = rhs_t.reshape(batch_shape + rf_shape + (k,))
-    if k == 0:
-        return NotImplemented
+    terms = int(np.prod(batch_shape + lf_shape + rf_shape, dtype=np.int64)) * k
+    if k == 0 or terms > _MAX_TERMS or jnp.bool_ in (eqn.invars[0].aval.dtype, out_dtype):
+        return NotImplemented  # a matrix product (a small network's layer) stays one XLA dot
 
     def term(a, b):
         a, b = ev.lane(a), ev.lane(b)
@@ -400,7 +412,6 @@ _RULES = {
     "broadcast_in_dim": _broadcast_in_dim,
     "reshape": _reshape,
     "squeeze": _squeeze,
-    "expand_dims": _expand_dims,
     "transpose": _transpose,
     "rev": _rev,
     "slice": _slice,

@@ -167,3 +167,14 @@ def test_chebyshev_interval_is_wider_than_normal():
     lo, hi = est.interval(0.95)
     clo, chi = est.chebyshev_interval(0.95)
     np.testing.assert_allclose(float(chi - clo) / float(hi - lo), (1 / np.sqrt(0.05)) / 1.959964, rtol=1e-5)
+
+
+def test_estimate_mis_accepts_a_traced_beta():
+    """beta may be traced (jit over it); an integer-valued concrete beta becomes an int power."""
+    f = lambda w: jnp.maximum(w[2], 0.0) ** 3  # noqa: E731
+    samplers = [js.UniformHemisphere(), js.CosineHemisphere()]
+    key = jax.random.key(12)
+    traced = jax.jit(lambda b: js.estimate_mis(f, samplers, jax.random.clone(key), [1024, 1024],
+                                               heuristic="power", beta=b).mean)(2.0)
+    concrete = js.estimate_mis(f, samplers, key, [1024, 1024], heuristic="power", beta=2.0).mean
+    np.testing.assert_allclose(traced, concrete, rtol=1e-5)
