@@ -14,8 +14,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxsample._base import Sampler, pytree_dataclass
-from jaxsample.testing import chi2_test
+from jaxsample.samplers.base import Sampler
+from jaxsample._core.pytree import pytree_dataclass
+from jaxsample.checks.sampler_checks import chi2_test
 
 jax.config.update("jax_debug_key_reuse", True)
 

@@ -33,8 +33,8 @@ import pytest
 
 import jaxsample as js
 from jaxsample import scene
-from jaxsample.estimators import (estimate_antithetic, estimate_control_variate, estimate_mis,
-                                  estimate_ratio)
+from jaxsample.estimators.variance_reduction import (estimate_antithetic, estimate_control_variate,
+    estimate_mis, estimate_ratio)
 
 K = 512
 K_SIGMA = 5.0

@@ -21,7 +21,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxsample as js
-from jaxsample import testing
+from jaxsample.checks import sampler_checks as testing
 
 F32_LAST = 1.0 - 2.0**-24
 N_CHI2_TESTS = 40

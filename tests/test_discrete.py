@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from issue3_helpers import WrongWarp, check_finite_at_edges, run_chi2
-from jaxsample.discrete import Discrete, build_alias_table
-from jaxsample.testing import normalization
+from jaxsample.samplers.discrete import Discrete, build_alias_table
+from jaxsample.checks.sampler_checks import normalization
 
 # Chi-square tests in this file, run as one family at overall false-failure rate 1e-6.
 N_CHI2 = 7

@@ -9,9 +9,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jaxsample import doublefloat
+from jaxsample._core import doublefloat
 from jaxsample import uniforms as U
-from jaxsample.estimate import run_stream
+from jaxsample.estimators.engine import run_stream
 
 # Away from over/underflow (XLA flushes subnormals, so an error term below 2^-126 is lost).
 finite32 = st.floats(min_value=-2.0 ** 30, max_value=2.0 ** 30, allow_nan=False, width=32).filter(

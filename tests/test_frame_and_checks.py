@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxsample as js
-from jaxsample import testing
+from jaxsample.checks import sampler_checks as testing
 
 DUFF_BAD_NORMALS = [
     (0.00038527316, 0.00038460016, -0.99999988079),

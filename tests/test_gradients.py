@@ -20,8 +20,9 @@ import numpy as np
 import pytest
 
 import jaxsample as js
-from jaxsample._base import Sampler, pytree_dataclass
-from jaxsample.gradients import expectation, expectation_values, integrand_values
+from jaxsample.samplers.base import Sampler
+from jaxsample._core.pytree import pytree_dataclass
+from jaxsample.estimators.gradients import expectation, expectation_values, integrand_values
 
 TWO_PI = 2.0 * math.pi
 

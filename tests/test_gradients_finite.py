@@ -29,8 +29,8 @@ import numpy as np
 import pytest
 
 import jaxsample as js
-from jaxsample import concentric
-from jaxsample.gradients import integrand_values
+from jaxsample.samplers import concentric
+from jaxsample.estimators.gradients import integrand_values
 
 EDGE = (0.0, 0.5, 1.0 - 2.0 ** -24)
 # Axes, centre and diagonal of the concentric map, beside the edge values.

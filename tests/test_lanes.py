@@ -11,9 +11,9 @@ import pytest
 
 import jaxsample as js
 from jaxsample import uniforms as U
-from jaxsample.computed_once import computed_once
-from jaxsample.doublefloat import sum_axis0
-from jaxsample.lanes import lane_map
+from jaxsample._core.computed_once import computed_once
+from jaxsample._core.doublefloat import sum_axis0
+from jaxsample._core.lanes import lane_map
 
 A = jnp.array([0.3, -0.2, 0.9327379], jnp.float32)
 M = jnp.array([[0.5, -1.0, 2.0], [0.25, 0.0, -0.75]], jnp.float32)

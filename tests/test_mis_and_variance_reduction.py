@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import jaxsample as js
-from jaxsample.estimate import estimate
-from jaxsample.estimators import (estimate_antithetic, estimate_control_variate, estimate_mis,
-                                  estimate_ratio)
+from jaxsample.estimators.engine import estimate
+from jaxsample.estimators.variance_reduction import (estimate_antithetic, estimate_control_variate,
+    estimate_mis, estimate_ratio)
 
 jax.config.update("jax_debug_key_reuse", True)
 

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxsample import numerics as nm
+from jaxsample._core import numerics as nm
 
 EDGES = jnp.array([-2.0, -1.0, 0.0, 1e-30, 0.5, 1.0, 2.0], jnp.float32)
 

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from issue3_helpers import WrongWarp, check_finite_at_edges, run_chi2
-from jaxsample.exponential import Exponential, TruncatedExponential
-from jaxsample.piecewise import PiecewiseConstant1D, PiecewiseConstant2D
-from jaxsample.power import Power
-from jaxsample.testing import inverse_error, jacobian_error, normalization
+from jaxsample.samplers.exponential import Exponential, TruncatedExponential
+from jaxsample.samplers.piecewise import PiecewiseConstant1D, PiecewiseConstant2D
+from jaxsample.samplers.power import Power
+from jaxsample.checks.sampler_checks import inverse_error, jacobian_error, normalization
 
 # Chi-square tests in this file, run as one family at overall false-failure rate 1e-6.
 N_CHI2 = 14

@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from issue3_helpers import WrongWarp, assert_finite, check_finite_at_edges, edge_uniforms, run_chi2
-from jaxsample.box import UniformBox
-from jaxsample.disk import UniformDisk
-from jaxsample.testing import inverse_error, jacobian_error, normalization
-from jaxsample.transformed import Transformed
-from jaxsample.domains import Disk
+from jaxsample.samplers.box import UniformBox
+from jaxsample.samplers.disk import UniformDisk
+from jaxsample.checks.sampler_checks import inverse_error, jacobian_error, normalization
+from jaxsample.samplers.transformed import Transformed
+from jaxsample.checks.domains import Disk
 
 # Chi-square tests in this file, run as one family at overall false-failure rate 1e-6.
 N_CHI2 = 8
@@ -27,7 +27,7 @@ THIN_3D = ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.5, 0.5 + 2e-12, 0.5])
 
 
 def triangle(vertices, dtype=None):
-    from jaxsample.triangle import UniformTriangle
+    from jaxsample.samplers.triangle import UniformTriangle
     return UniformTriangle(*(jnp.asarray(v, dtype) for v in vertices))
 
 
@@ -148,14 +148,14 @@ def test_disk_finite_at_edges(method, dtype):
 @pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
 @pytest.mark.parametrize("vertices", [TRIANGLE_2D, TRIANGLE_3D])
 def test_triangle_finite_at_edges(vertices, dtype):
-    from jaxsample.triangle import UniformTriangle
+    from jaxsample.samplers.triangle import UniformTriangle
     centroid = np.mean(np.array(vertices), axis=0)
     with jax.enable_x64(dtype == jnp.float64):
         check_finite_at_edges(UniformTriangle, vertices, dtype, point=centroid)
 
 
 def test_thin_triangle_finite_float64():
-    from jaxsample.triangle import UniformTriangle
+    from jaxsample.samplers.triangle import UniformTriangle
     with jax.enable_x64(True):
         check_finite_at_edges(UniformTriangle, THIN_3D, jnp.float64)
 
@@ -176,7 +176,7 @@ def test_rejection_disk_is_exactly_uniform_with_one_try():
 
 
 def test_invalid_parameters_raise():
-    from jaxsample.triangle import UniformTriangle
+    from jaxsample.samplers.triangle import UniformTriangle
     with pytest.raises(ValueError, match="'a', 'b', 'c'.*degenerate"):
         UniformTriangle(np.array([0.0, 0.0]), np.array([1.0, 1.0]), np.array([2.0, 2.0]))
     with pytest.raises(ValueError, match="degenerate"):
@@ -194,7 +194,7 @@ def test_invalid_parameters_raise():
 
 
 def test_jit_and_vmap_over_vertices():
-    from jaxsample.triangle import UniformTriangle
+    from jaxsample.samplers.triangle import UniformTriangle
     keys = jax.random.split(jax.random.key(40), 2)
     c = jax.random.uniform(keys[0], (16, 3)) + jnp.array([0.0, 1.0, 0.0])
     u = jax.random.uniform(keys[1], (16, 2))
@@ -214,7 +214,7 @@ def test_jit_and_vmap_over_vertices():
 @settings(derandomize=True, deadline=None, max_examples=15)
 @given(st.lists(st.floats(-10.0, 10.0), min_size=9, max_size=9))
 def test_random_triangles(coordinates):
-    from jaxsample.triangle import UniformTriangle
+    from jaxsample.samplers.triangle import UniformTriangle
     a, b, c = np.array(coordinates).reshape(3, 3)
     twice_area = np.linalg.norm(np.cross(b - a, c - a))
     longest = max(np.sum((b - a) ** 2), np.sum((c - a) ** 2), np.sum((c - b) ** 2))

@@ -8,17 +8,17 @@ import numpy as np
 import pytest
 
 from issue3_helpers import WrongWarp, check_finite_at_edges, run_chi2
-from jaxsample.box import UniformBox
-from jaxsample.disk import UniformDisk
-from jaxsample.domains import Directions, Disk
-from jaxsample.exponential import Exponential
-from jaxsample.mixture import Mixture
-from jaxsample.phong import PhongLobe
-from jaxsample.power import Power
-from jaxsample.rejection import Rejection
-from jaxsample.sphere import UniformHemisphere, UniformSphere
-from jaxsample.testing import normalization
-from jaxsample.transformed import Transformed
+from jaxsample.samplers.box import UniformBox
+from jaxsample.samplers.disk import UniformDisk
+from jaxsample.checks.domains import Directions, Disk
+from jaxsample.samplers.exponential import Exponential
+from jaxsample.samplers.mixture import Mixture
+from jaxsample.samplers.phong import PhongLobe
+from jaxsample.samplers.power import Power
+from jaxsample.samplers.rejection import Rejection
+from jaxsample.samplers.sphere import UniformHemisphere, UniformSphere
+from jaxsample.checks.sampler_checks import normalization
+from jaxsample.samplers.transformed import Transformed
 
 # Chi-square tests in this file, run as one family at overall false-failure rate 1e-6.
 N_CHI2 = 7

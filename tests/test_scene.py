@@ -20,7 +20,7 @@ import pytest
 
 import jaxsample as js
 from jaxsample import scene
-from jaxsample._base import pytree_dataclass
+from jaxsample._core.pytree import pytree_dataclass
 
 Z_LIMIT = 4.0
 POINT = jnp.zeros(3)

@@ -46,12 +46,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import check_choice, default_float_dtype, pytree_dataclass
-from . import doublefloat
-from .computed_once import computed_once
-from .lanes import lane_map
-from .numerics import safe_div, safe_sqrt
-from .uniforms import Source, as_source, seed_from_key
+from .._core.params import check_choice, default_float_dtype
+from .._core.pytree import pytree_dataclass
+from .._core import doublefloat
+from .._core.computed_once import computed_once
+from .._core.lanes import lane_map
+from .._core.numerics import safe_div, safe_sqrt
+from ..uniforms import Source, as_source, seed_from_key
 
 __all__ = ["Estimate", "estimate", "integrand_values", "DEFAULT_CHUNK_SIZE"]
 

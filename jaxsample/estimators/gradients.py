@@ -40,8 +40,8 @@ from typing import Any, Callable
 import jax
 import jax.numpy as jnp
 
-from ._base import check_choice, default_float_dtype
-from .estimate import Estimate, integrand_values, run_stream
+from .._core.params import check_choice, default_float_dtype
+from .engine import Estimate, integrand_values, run_stream
 
 __all__ = ["expectation", "expectation_values", "integrand_values"]
 

@@ -18,9 +18,9 @@ from typing import Callable, Sequence
 import jax
 import jax.numpy as jnp
 
-from ._base import check_choice, default_float_dtype
-from .estimate import Estimate, _broadcast_pdf, _detach, run_stream
-from .numerics import safe_div, safe_sqrt
+from .._core.params import check_choice, default_float_dtype
+from .engine import Estimate, _broadcast_pdf, _detach, run_stream
+from .._core.numerics import safe_div, safe_sqrt
 
 __all__ = ["estimate_mis", "estimate_ratio", "estimate_antithetic", "estimate_control_variate"]
 

@@ -9,123 +9,15 @@ bijection, its inverse.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .numerics import safe_log
-
-
-def pytree_dataclass(cls=None, *, static: tuple[str, ...] = ()):
-    """Freeze `cls` as a dataclass and register it as a pytree.
-
-    Fields named in `static` (methods, table sizes) are metadata and trigger recompilation when
-    they change; every other field is a leaf and may be a tracer.
-    """
-
-    def wrap(cls):
-        cls = dataclasses.dataclass(frozen=True)(cls)
-        names = [f.name for f in dataclasses.fields(cls)]
-        data = [n for n in names if n not in static]
-        meta = [n for n in names if n in static]
-        return jax.tree_util.register_dataclass(cls, data_fields=data, meta_fields=meta)
-
-    return wrap if cls is None else wrap(cls)
-
-
-def pytree_attributes(leaves: tuple[str, ...], static: tuple[str, ...] = ()):
-    """Register a class with its own `__init__` as a pytree: the attributes named in `leaves` are
-    its leaves, those in `static` its metadata (hashable; a change recompiles).
-
-    For samplers whose constructor checks its arguments and builds tables, which a dataclass
-    cannot express. Unflattening bypasses `__init__`: JAX rebuilds the object from leaves that
-    may be tracers or placeholders, and the checks and tables were done when it was first made.
-    """
-
-    def wrap(cls):
-        def flatten(obj):
-            return tuple(getattr(obj, n) for n in leaves), tuple(getattr(obj, n) for n in static)
-
-        def unflatten(aux, children):
-            obj = object.__new__(cls)
-            for name, value in zip(leaves + static, tuple(children) + tuple(aux)):
-                object.__setattr__(obj, name, value)
-            return obj
-
-        jax.tree_util.register_pytree_node(cls, flatten, unflatten)
-        return cls
-
-    return wrap
-
-
-def concrete_value(x: Any) -> np.ndarray | None:
-    """`x` as a float64 NumPy array if it is a concrete number, else None (tracers, placeholders).
-
-    JAX rebuilds pytrees with tracers and sometimes with non-numeric placeholders, so parameter
-    checks only run on values that are really known.
-    """
-    if isinstance(x, jax.core.Tracer):
-        return None
-    if isinstance(x, (list, tuple)):
-        try:
-            return np.asarray(x, dtype=np.float64)
-        except (TypeError, ValueError):
-            return None
-    if isinstance(x, (int, float, np.ndarray, np.number, jax.Array)) and not isinstance(x, bool):
-        try:
-            return np.asarray(x, dtype=np.float64)
-        except (TypeError, ValueError, jax.errors.ConcretizationTypeError):
-            return None
-    return None
-
-
-def check_parameter(
-    owner: str,
-    name: str,
-    value: Any,
-    low: float = -np.inf,
-    high: float = np.inf,
-    *,
-    low_open: bool = False,
-    high_open: bool = False,
-) -> None:
-    """Raise `ValueError` naming `owner.name` and its valid range if a concrete value is outside it.
-
-    NaN is always rejected. Traced values are not checked: under `jit` a sampler cannot raise, and
-    an out-of-range traced parameter gives the documented garbage-in behaviour of each sampler.
-    """
-    v = concrete_value(value)
-    if v is None:
-        return
-    # A bound like 1e-6 is not representable in float32: float32(1e-6), and that value cast to
-    # float64, must count as in range, so each bound is widened to its float32 rounding.
-    if np.isfinite(low):
-        low = min(low, float(np.float32(low)))
-    if np.isfinite(high):
-        high = max(high, float(np.float32(high)))
-    left = "(" if low_open else "["
-    right = ")" if high_open else "]"
-    interval = f"{left}{low:g}, {high:g}{right}"
-    bad_low = (v <= low) if low_open else (v < low)
-    bad_high = (v >= high) if high_open else (v > high)
-    bad = np.isnan(v) | bad_low | bad_high
-    if np.any(bad):
-        shown = v if v.ndim == 0 else v[bad].ravel()[:3]
-        raise ValueError(f"{owner}: parameter '{name}' must be in {interval}; got {shown}")
-
-
-def check_choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
-    if value not in choices:
-        raise ValueError(f"{owner}: parameter '{name}' must be one of {choices}; got {value!r}")
-
-
-def default_float_dtype():
-    """float64 when `jax_enable_x64` is on, else float32."""
-    return jnp.zeros(()).dtype
+from .._core.params import default_float_dtype
+from .._core.numerics import safe_log
 
 
 class Sampler:
@@ -211,9 +103,9 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
     Written as `warp(u)` on a (count, d) block, XLA recomputed the generator and the warp for each
     output coordinate (the HLO shows Philox once per consumer) and ran below NumPy's speed.
     """
-    from .computed_once import computed_once
-    from .lanes import lane_map
-    from .uniforms import Random, seed_from_key
+    from .._core.computed_once import computed_once
+    from .._core.lanes import lane_map
+    from ..uniforms import Random, seed_from_key
 
     seed = key if (isinstance(key, jax.Array) and key.dtype == jnp.uint32) else seed_from_key(key)
     count = int(np.prod(shape, dtype=np.int64))

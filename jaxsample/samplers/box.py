@@ -10,8 +10,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, concrete_value, pytree_dataclass
-from .domains import Box
+from .base import Sampler
+from .._core.params import concrete_value
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Box
 
 
 @pytree_dataclass

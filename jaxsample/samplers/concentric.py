@@ -14,7 +14,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .numerics import safe_sqrt, sincos_2pi
+from .._core.numerics import safe_sqrt, sincos_2pi
 
 QUARTER_PI = 0.25 * np.pi
 

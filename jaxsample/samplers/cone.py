@@ -8,10 +8,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, check_parameter, concrete_value
-from .domains import Directions
-from .numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
-                       one_minus_cos_theta)
+from .base import Sampler
+from .._core.params import check_parameter, concrete_value
+from ..checks.domains import Directions
+from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
+    one_minus_cos_theta)
 
 # Relative slack on the cap's edge in `pdf`: a sample warped from u₀ = 1 - 2^-24 must not be
 # declared outside the cap because recomputing 1 - cos θ from the vector rounds up by an ulp.

@@ -7,9 +7,11 @@ from typing import ClassVar
 import jax.numpy as jnp
 
 from . import concentric
-from ._base import Sampler, check_choice, pytree_dataclass
-from .domains import Directions
-from .numerics import INV_PI, azimuth_fraction, safe_sqrt, spherical_direction
+from .base import Sampler
+from .._core.params import check_choice
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Directions
+from .._core.numerics import INV_PI, azimuth_fraction, safe_sqrt, spherical_direction
 
 
 @pytree_dataclass(static=("method",))

@@ -13,9 +13,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, check_choice, concrete_value, default_float_dtype, pytree_attributes
-from .domains import DiscreteSet
-from .numerics import one_minus_epsilon
+from .base import Sampler
+from .._core.params import check_choice, concrete_value, default_float_dtype
+from .._core.pytree import pytree_attributes
+from ..checks.domains import DiscreteSet
+from .._core.numerics import one_minus_epsilon
 
 
 def as_array(x):

@@ -8,9 +8,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import concentric
-from ._base import Sampler, check_choice, check_parameter, pytree_dataclass
-from .domains import Disk
-from .numerics import INV_PI, azimuth_fraction, safe_sqrt, sincos_2pi
+from .base import Sampler
+from .._core.params import check_choice, check_parameter
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Disk
+from .._core.numerics import INV_PI, azimuth_fraction, safe_sqrt, sincos_2pi
 
 
 def _polar(u):

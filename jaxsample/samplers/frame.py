@@ -12,7 +12,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from ._base import concrete_value, pytree_dataclass
+from .._core.params import concrete_value
+from .._core.pytree import pytree_dataclass
 
 import numpy as np
 

@@ -8,7 +8,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, pytree_dataclass
+from .base import Sampler
+from .._core.pytree import pytree_dataclass
 from .discrete import as_array, cdf_from_weights, check_weights, select_with_remainder
 
 

@@ -8,7 +8,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, WrapsSampler, concrete_value, pytree_dataclass
+from .base import Sampler, WrapsSampler
+from .._core.params import concrete_value
+from .._core.pytree import pytree_dataclass
 from .frame import Frame
 
 

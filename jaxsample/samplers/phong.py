@@ -7,10 +7,12 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from ._base import Sampler, check_parameter, pytree_dataclass
-from .domains import Directions
-from .numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
-                       one_minus_cos_theta, one_minus_epsilon)
+from .base import Sampler
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Directions
+from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
+    one_minus_cos_theta, one_minus_epsilon)
 
 
 @pytree_dataclass

@@ -13,9 +13,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, concrete_value, pytree_attributes
-from .discrete import as_array, check_weights, normalized_tables, select_rows_with_remainder, select_with_remainder
-from .domains import Box, Interval
+from .base import Sampler
+from .._core.params import concrete_value
+from .._core.pytree import pytree_attributes
+from .discrete import (as_array, check_weights, normalized_tables, select_rows_with_remainder,
+    select_with_remainder)
+from ..checks.domains import Box, Interval
 
 
 def _bin_index(x, n):

@@ -6,9 +6,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, check_choice, check_parameter, concrete_value
-from .domains import Interval
-from .numerics import safe_log, safe_pow
+from .base import Sampler
+from .._core.params import check_choice, check_parameter, concrete_value
+from ..checks.domains import Interval
+from .._core.numerics import safe_log, safe_pow
 
 
 @jax.tree_util.register_pytree_node_class

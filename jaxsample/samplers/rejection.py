@@ -9,7 +9,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, check_parameter, draw, pytree_dataclass
+from .base import Sampler, draw
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
 
 
 @pytree_dataclass

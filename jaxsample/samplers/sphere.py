@@ -7,10 +7,12 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from ._base import Sampler, check_choice, check_parameter, pytree_dataclass
-from .domains import Directions
-from .numerics import (INV_2PI, INV_4PI, azimuth_fraction, one_minus_cos_theta, safe_sqrt,
-                       spherical_direction)
+from .base import Sampler
+from .._core.params import check_choice, check_parameter
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Directions
+from .._core.numerics import (INV_2PI, INV_4PI, azimuth_fraction, one_minus_cos_theta, safe_sqrt,
+    spherical_direction)
 
 
 @pytree_dataclass(static=("method", "tries"))

@@ -8,7 +8,8 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from ._base import Sampler, WrapsSampler, pytree_attributes
+from .base import Sampler, WrapsSampler
+from .._core.pytree import pytree_attributes
 
 
 def _map_points(fn, x, event_ndim):

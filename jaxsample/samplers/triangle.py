@@ -6,9 +6,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, concrete_value, pytree_dataclass
-from .domains import Triangle
-from .numerics import safe_div, safe_sqrt
+from .base import Sampler
+from .._core.params import concrete_value
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Triangle
+from .._core.numerics import safe_div, safe_sqrt
 
 # A triangle whose doubled area is below this many float64 epsilons times its longest squared edge
 # is zero to within the rounding of the cross product itself: degenerate.

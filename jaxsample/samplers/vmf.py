@@ -8,9 +8,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._base import Sampler, check_parameter, pytree_dataclass
-from .domains import Directions
-from .numerics import azimuth_fraction, direction_from_one_minus_cos, one_minus_cos_theta
+from .base import Sampler
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Directions
+from .._core.numerics import azimuth_fraction, direction_from_one_minus_cos, one_minus_cos_theta
 
 
 @pytree_dataclass

@@ -12,7 +12,7 @@ from .environment import EnvironmentDirections, EnvironmentMap
 from .lambertian import Lambertian
 from .phong import Phong, reflect
 from .reference import reference_radiance
-from .shade import STRATEGIES, mis_weight, shade
+from .direct import STRATEGIES, mis_weight, shade
 from .sky import ConstantSky
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight, TriangleLightDirections

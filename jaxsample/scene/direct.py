@@ -35,10 +35,10 @@ from typing import Sequence
 import jax
 import jax.numpy as jnp
 
-from .._base import check_choice, default_float_dtype
-from ..estimate import Estimate, run_stream
-from ..frame import Frame
-from ..numerics import safe_div
+from .._core.params import check_choice, default_float_dtype
+from ..estimators.engine import Estimate, run_stream
+from ..samplers.frame import Frame
+from .._core.numerics import safe_div
 
 __all__ = ["shade", "STRATEGIES"]
 

@@ -1,0 +1,17 @@
+"""Layer 2: uniform sources — maps from a PRNG key to points of the open unit hypercube (0, 1)^d.
+
+One file per generator: `philox` (Philox4x32-10 and the bits-to-float map), `sobol` (Sobol' points,
+Joe & Kuo direction numbers, Owen scrambling) and `sources` (the `Random`, `Stratified` and `Sobol`
+sources the estimators stream from; its docstring states the streams and the float grid).
+"""
+
+from .philox import (SEED_WORDS, _philox_words, _samples_per_block, bits_to_unit, philox4x32, random_bits,
+                     seed_from_key)
+from .sobol import MAX_SOBOL_DIMS, owen_scramble, sobol_direction_numbers, sobol_points
+from .sources import Random, Sobol, Source, SourceLike, Stratified, as_source, uniform_block
+
+__all__ = [
+    "Random", "Stratified", "Sobol", "Source", "as_source", "seed_from_key", "uniform_block",
+    "philox4x32", "sobol_direction_numbers", "sobol_points", "owen_scramble", "bits_to_unit",
+    "MAX_SOBOL_DIMS",
+]
