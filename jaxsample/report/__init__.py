@@ -3,7 +3,8 @@
 It answers, for each integrand with an exact reference: which sampling strategy gives the smallest
 error in a given time, and by how much. Every figure is measured in the run that writes it.
 
-Sections (each computed by a piece in `benchmarks/`, runnable alone):
+Sections (each computed by a module of this package, runnable alone as `python -m
+jaxsample.report.<module>` or `python benchmarks/<module>.py` in a checkout):
   1. environment (device, dtype, JAX version, PRNG);
   2. samplers: normalization, a known integral ± stderr, time per million (`samplers_table.py`);
   3. convergence: RMSE, bias, variance, ns/sample, time to unit variance, efficiency and RMSE
@@ -26,24 +27,20 @@ import importlib
 import json
 import os
 import platform
-import sys
 import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
-BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
 # --tiny is a smoke test of every code path, not a study: a few samplers of each kind.
 TINY_SAMPLERS = ("CosineHemisphere(malley)", "PhongLobe(1e7)", "UniformCone(1e-8 sr)", "UniformDisk(concentric)",
                  "Exponential(2)", "Discrete(1,2,3,4)", "Mixture(cosine, Phong 20)")
 
 
 def _piece(name: str):
-    """Import a module from the repository's benchmarks/ folder (the report's building blocks)."""
-    if str(BENCHMARKS) not in sys.path:
-        sys.path.insert(0, str(BENCHMARKS))
-    return importlib.import_module(name)
+    """A module of this package (the report's building blocks), imported when its section runs."""
+    return importlib.import_module(f"{__name__}.{name}")
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
@@ -166,7 +163,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
            "per technique as two evaluations. Estimates at each n are prefix means of one stream per key "
            "(Sobol': one scrambled sequence, whose power-of-two prefixes are nets); jittered points are "
            "drawn anew per n. Zero-variance strategies are floored at the float32 rounding level "
-           "(see benchmarks/convergence.py).\n", convergence.markdown_table(rows)]
+           "(see jaxsample/report/convergence.py).\n", convergence.markdown_table(rows)]
 
     baselines = _piece("baselines")
     if tiny:
@@ -182,7 +179,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     md += ["## Speed of every public path\n",
            "Each row times a program users write (ns per sample, or per radiance evaluation for "
            "`shade`), with its ratio and target taken in this run from interleaved medians "
-           f"(`benchmarks/paths.py`{'; --tiny times only the integrand forms' if tiny else ''}).\n",
+           f"(`jaxsample/report/paths.py`{'; --tiny times only the integrand forms' if tiny else ''}).\n",
            paths.markdown_table(path_rows)]
 
     dims_rows: list[dict] = []
@@ -226,7 +223,10 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         images = _plots(rows, out, dims_rows)
         md += ["## Plots\n"] + [f"![{name}]({name})" for name in images]
     except ImportError:
-        md += ["## Plots\n", "matplotlib is not installed: `pip install -e \".[plot]\"` and rerun for the PNG plots.\n"]
+        hint = ("matplotlib is not installed, so there are no plots: `pip install matplotlib` (the package's "
+                "`plot` extra) and rerun for the PNG plots.")
+        progress(hint)
+        md += ["## Plots\n", hint + "\n"]
 
     md.append(f"\nTotal run time: {time.perf_counter() - started:.0f} s.\n")
     (out / "report.md").write_text("\n".join(md))

@@ -8,15 +8,12 @@ after a warm-up, taken in this one run (absolute speeds on a shared machine vary
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 
 import jax
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import jaxsample as js
 
-import jaxsample as js  # noqa: E402
-from bench_estimator import cos3, median_time, numpy_estimate, uniform_floor  # noqa: E402
+from .numpy_baseline import cos3, median_time, numpy_estimate, uniform_floor
 
 
 def baseline_table(quick: bool = True, progress=print) -> dict:

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxsample as js
-from jaxsample.gradients import expectation, expectation_values, integrand_values
+from ..estimators.gradients import expectation, expectation_values, integrand_values
 
 EXPONENTS = (1.0, 10.0, 50.0)
 POWERS = (1, 3, 10, 30)

@@ -33,7 +33,7 @@ import numpy as np
 
 import jaxsample as js
 from jaxsample import uniforms as U
-from timing import median_seconds
+from .timing import median_seconds
 
 COS30 = float(np.cos(np.pi / 6))
 CAP_AXIS = np.array([0.5, 0.0, 1.0]) / np.linalg.norm([0.5, 0.0, 1.0])

@@ -24,9 +24,9 @@ import numpy as np
 import jaxsample as js
 from jaxsample import scene
 
-from bench_estimator import cos3, numpy_estimate
-from samplers_table import cases as sampler_cases
-from timing import interleaved_medians
+from .numpy_baseline import cos3, numpy_estimate
+from .samplers_table import cases as sampler_cases
+from .timing import interleaved_medians
 
 AXIS = jnp.array([0.3, 0.2, 0.9327379], jnp.float32)  # tilted, so every component is used
 TWO_PI = np.float32(2 * np.pi)

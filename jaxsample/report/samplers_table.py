@@ -14,8 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxsample as js
-from jaxsample import testing
-from timing import median_seconds
+from ..checks import sampler_checks as testing
+from .timing import median_seconds
 
 TRI = (jnp.array([0.0, 0.0]), jnp.array([1.0, 0.0]), jnp.array([0.0, 1.0]))
 
