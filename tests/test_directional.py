@@ -93,7 +93,6 @@ def test_chi_square_goodness_of_fit(name, p):
     assert result.passed, result
 
 
-@jax.tree_util.register_dataclass
 class _PhongOff(js.PhongLobe):
     """Warps with an exponent 2 % too large while claiming the right density."""
 
@@ -107,9 +106,6 @@ class _ConeOff(js.UniformCone):
     def warp(self, u):
         return js.UniformCone(one_minus_cos_theta_max=self.one_minus_cos_theta_max * 0.98).warp(u)
 
-
-jax.tree_util.register_pytree_node(_ConeOff, lambda c: ((c.one_minus_cos_theta_max,), None),
-                                   lambda _, ch: _ConeOff(one_minus_cos_theta_max=ch[0]))
 
 
 @pytest.mark.parametrize("family,wrong", [("PhongLobe", _PhongOff(jnp.float32(5.0))),

@@ -70,13 +70,11 @@ def test_gradients_flow_through_the_frame_to_the_normal():
     np.testing.assert_allclose(g, fd, rtol=1e-2)
 
 
-@jax.tree_util.register_dataclass
 class _MisnormalizedPhong(js.PhongLobe):
     def pdf(self, x):
         return 1.01 * super().pdf(x)
 
 
-@jax.tree_util.register_dataclass
 class _WrongInversePhong(js.PhongLobe):
     def inverse(self, x):
         u = super().inverse(x)
@@ -111,7 +109,6 @@ def test_chi_square_rejects_a_misnormalized_density_and_samples_outside_the_supp
             x = super().warp(u)
             return jnp.where((u[..., 1:2] < 0.01), x * jnp.array([1.0, 1.0, -1.0]), x)
 
-    jax.tree_util.register_dataclass(Leaky, data_fields=[], meta_fields=[])
     # Deterministic in effect: ~1000 of the 10^5 samples land outside (none would pass unseen).
     leaky = testing.chi2_test(Leaky(), jax.random.key(4), n_samples=100_000)
     assert not leaky.passed and leaky.n_outside > 0

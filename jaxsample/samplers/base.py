@@ -17,15 +17,18 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.params import default_float_dtype
+from .._core.pytree import Pytree
 from .._core.numerics import safe_log
 
 
-class Sampler:
+class Sampler(Pytree):
     """Base class: `sample`, `sample_with_pdf`, `log_pdf` and `warp_with_pdf` from `warp` and `pdf`.
 
     Subclasses define `uniform_dims`, `event_shape`, `warp(u)`, `pdf(x)` and `domain()`; they may
     override `warp_with_pdf` when the density is more accurate from u than from x (sharp lobes),
-    and `inverse` where the warp is a bijection.
+    and `inverse` where the warp is a bijection. Every subclass is a pytree with no registration
+    (`jaxsample._core.pytree.Pytree`): attributes holding arrays or floats are its leaves (traceable
+    under `jit`, `vmap` and `grad`), the others (strings, ints) static metadata.
     """
 
     uniform_dims: ClassVar[int]

@@ -10,6 +10,7 @@ import numpy as np
 
 from .base import Sampler
 from .._core.params import check_parameter, concrete_value
+from .._core.pytree import pytree_attributes
 from ..checks.domains import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
     one_minus_cos_theta)
@@ -19,7 +20,7 @@ from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minu
 _EDGE_SLACK = 4 * np.finfo(np.float32).eps
 
 
-@jax.tree_util.register_pytree_node_class
+@pytree_attributes(leaves=("one_minus_cos_theta_max",))
 class UniformCone(Sampler):
     """Uniform on the cap {ω : cos θ >= cos θ_max}: p(ω) = 1/(2π(1 - cos θ_max)) over solid angle.
 
@@ -77,15 +78,6 @@ class UniformCone(Sampler):
     @property
     def solid_angle(self):
         return 2.0 * jnp.pi * self.one_minus_cos_theta_max
-
-    def tree_flatten(self):
-        return (self.one_minus_cos_theta_max,), None
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        obj = object.__new__(cls)
-        obj.one_minus_cos_theta_max = children[0]
-        return obj
 
     def __repr__(self):
         return f"UniformCone(one_minus_cos_theta_max={self.one_minus_cos_theta_max!r})"

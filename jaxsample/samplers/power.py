@@ -12,7 +12,6 @@ from ..checks.domains import Interval
 from .._core.numerics import safe_log, safe_pow
 
 
-@jax.tree_util.register_pytree_node_class
 class Power(Sampler):
     """p(x) = (n + 1) x^n on [0, 1] (length measure), 0 outside; n = `exponent`.
 
@@ -44,17 +43,9 @@ class Power(Sampler):
             exponent = int(n)
         self.exponent = exponent
 
-    def tree_flatten(self):
-        if self.method == "max":
-            return (), (self.method, self.exponent)
-        return (self.exponent,), (self.method,)
-
-    @classmethod
-    def tree_unflatten(cls, aux, children):
-        obj = object.__new__(cls)
-        obj.method = aux[0]
-        obj.exponent = aux[1] if obj.method == "max" else children[0]
-        return obj
+    def _tree_fields(self):
+        """The pytree split (jaxsample._core.pytree): "max" needs its integer exponent static."""
+        return ((), ("method", "exponent")) if self.method == "max" else (("exponent",), ("method",))
 
     def __repr__(self):
         return f"Power(exponent={self.exponent!r}, method={self.method!r})"
