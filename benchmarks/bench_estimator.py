@@ -150,7 +150,7 @@ def main():
     # integrand is π(1 - u₀), smooth, and the points reach their n^-1.5 rate.
     logs = np.arange(10, 21, 2)
     n_eff = 1 << 20
-    var_random = np.pi ** 2 / 12 / n_eff             # exact (reference.md), either map
+    var_random = np.pi ** 2 / 12 / n_eff             # exact (docs/reference.md), either map
     sobol = {}
     for name, sampler in (("malley", cosine), ("inversion", inversion)):
         for dtype in ("float32", "float64"):

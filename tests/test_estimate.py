@@ -1,7 +1,7 @@
 """estimate: unbiasedness, chunking invariance, accumulation, jit/vmap/grad, coverage, sharding.
 
 Statistical checks state their false-failure rate (FFR) and are shown to fail on a wrong input.
-Exact values from reference.md: ∫_{H²} cos³ dω = π/2; Var[f/p] = π²/12 for cosine sampling,
+Exact values from docs/reference.md: ∫_{H²} cos³ dω = π/2; Var[f/p] = π²/12 for cosine sampling,
 9π²/28 for uniform hemisphere sampling.
 """
 
@@ -132,7 +132,7 @@ def test_accumulator_exact_for_constant_over_2_to_30_samples():
 
 
 def test_vmap_over_keys_and_phong_exponents():
-    """E over Phong(n) sampling of cos³: variance 4π²(n-3)²/(16(16-(n-3)²)) (reference.md)."""
+    """E over Phong(n) sampling of cos³: variance 4π²(n-3)²/(16(16-(n-3)²)) (docs/reference.md)."""
     exponents = jnp.array([0.0, 1.0, 3.0, 5.0])
     keys = jax.random.split(next(KEYS), 4)
     n = 1 << 16
@@ -146,7 +146,7 @@ def test_vmap_over_keys_and_phong_exponents():
 
 def test_grad_attached_exact_and_detached_zero():
     """cos^n sampled from Phong(n): the attached derivative is -2π/(n+1)² for every sample;
-    a fixed integrand (cos³) has a detached derivative of exactly 0 (reference.md)."""
+    a fixed integrand (cos³) has a detached derivative of exactly 0 (docs/reference.md)."""
     key_a, key_b = jax.random.split(next(KEYS))
 
     def own_lobe(n, key):

@@ -1,7 +1,7 @@
 """Gradients of estimates with respect to sampler parameters (issue 5).
 
 Statistical tests compare a gradient estimate with its exact mean, in units of a standard error
-computed from the *exact* variance (reference.md, "Gradients with respect to a sampler
+computed from the *exact* variance (docs/reference.md, "Gradients with respect to a sampler
 parameter"). Thresholds: 5 standard errors for the fixed-integral tests (two-sided normal
 false-failure rate 5.7e-7 per check), 4 for the E[cos^k] tests (6.3e-5 per check; 16 checks, so
 about 1e-3 for the file as a whole). The keys are fixed, so a run is deterministic; the rates say
@@ -28,7 +28,7 @@ TWO_PI = 2.0 * math.pi
 
 
 # ----------------------------------------------------------------------------------------------
-# Exact means and variances (reference.md; literature.md §1.2-1.4)
+# Exact means and variances (docs/reference.md; docs/literature.md §1.2-1.4)
 # ----------------------------------------------------------------------------------------------
 
 
@@ -197,7 +197,7 @@ def test_half_detached_estimator_is_caught(k, n, detach):
     assert abs(float(grad_estimate)) > 5 * stderr
     mean = float(np.mean(np.asarray(per_sample, np.float64)))
     assert abs(mean) > 5 * stderr
-    # ... and its mean is the bias reference.md states (within the sampling error of that mean).
+    # ... and its mean is the bias docs/reference.md states (within the sampling error of that mean).
     spread = float(np.std(np.asarray(per_sample, np.float64))) / math.sqrt(N_FIXED)
     assert abs(mean - bias) < 5 * spread, (mean, bias, spread)
 
@@ -420,7 +420,7 @@ def test_expectation_pathwise_and_score_match_central_differences():
     """Pathwise: the derivative of the same estimate with common random numbers (rtol 1e-6), and
     the exact derivative 3/(n+4)² within 5 exact standard errors. Score: its surrogate's value
     does not move the samples (finite differences of it are 0), so it is compared with the exact
-    derivative only, within 5 exact standard errors (reference.md's per-sample variance). Normal
+    derivative only, within 5 exact standard errors (docs/reference.md's per-sample variance). Normal
     FFR 5.7e-7 per comparison."""
     with jax.enable_x64(True):
         key = jax.random.key(1100)

@@ -6,7 +6,7 @@ puts the small event axes (the 3 of a direction) minor-most, and XLA's CPU backe
 operations that mix them badly: a batched `x @ a` stays a separate (count, 3) x (3,) `dot` op fed
 by a materialised (count, 3) stack, `jnp.sum(x * a)` reduces over a length-3 minor axis after
 materialising the product, and the generator and the warp are fused twice, once into each
-consumer (seen in the optimized HLO; `shared/research/xla-cpu-paths.md`). Written with explicit
+consumer (seen in the optimized HLO; `docs/xla-cpu-paths.md`). Written with explicit
 components (`x[0] * a[0] + ...`) the same integrand is one loop fusion, 10-30x faster.
 
 `lane_map(fn)` gets that fusion for every way of writing the integrand. It traces `fn` on ONE

@@ -103,7 +103,7 @@ def sincos_2pi(u: jax.Array) -> tuple[jax.Array, jax.Array]:
     """(sin 2πu, cos 2πu) for u in [0, 1) (any real u works: the result is periodic).
 
     float32: quarter-turn reduction and short polynomials, because XLA's CPU sine and cosine
-    dominate the cost of a whole sample (reference.md). With q = round(4u) and t = u - q/4 in
+    dominate the cost of a whole sample (docs/reference.md). With q = round(4u) and t = u - q/4 in
     [-1/8, 1/8], sin and cos of x = 2πt (|x| <= π/4) are their Taylor polynomials to degree 7 and
     8 (truncation below 3.2e-7 and 2.5e-8), and the quadrant q mod 4 rotates them into place. The
     max abs error over [0, 1) is below 1e-6 (tested). t is formed exactly from u, so no accuracy is

@@ -8,7 +8,7 @@ Two different questions share the words "gradient of a Monte Carlo estimate" (Mo
    `mode`: "attached" differentiates f(T(u; θ))/p(T(u; θ); θ) through the warp T and the density
    (unbiased, noisy); "detached" holds the sample and its density constant together, so only f
    carries a derivative (every per-sample gradient of a θ-free f is exactly 0). Holding only one
-   of them constant is biased (reference.md gives the bias for the Phong lobe), so the choice is
+   of them constant is biased (docs/reference.md gives the bias for the Phong lobe), so the choice is
    made in one place (`integrand_values`) and applied to sample, density and MIS weights at once.
 
 2. An expectation E_{p_θ}[g] = ∫ g p_θ dμ, whose value itself moves with θ. That is

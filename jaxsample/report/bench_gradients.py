@@ -1,13 +1,13 @@
 """Gradient estimators for the Phong exponent: variance, bias z-score and cost, against theory.
 
-Two reference problems (reference.md, "Gradients with respect to a sampler parameter"):
+Two reference problems (docs/reference.md, "Gradients with respect to a sampler parameter"):
 
 - fixed integral ∫_{H²} cos^k dω sampled from Phong(n) (`estimate`, mode "attached" or
   "detached"): the exact gradient is 0; the attached per-sample variance is
   4π²/(n+1)⁴ (2b²/c³ - 2b/c² + 1/c), b = (k+1)/(n+1), c = (2k+1-n)/(n+1), infinite for n >= 2k+1;
   the detached one is exactly 0.
 - d/dn E_{Phong(n)}[cos^k] = k/(n+k+1)² (`expectation`, "pathwise", "score", "score" with the
-  leave-one-out baseline): exact per-sample variances from E[g²] (literature.md §1.2); for the
+  leave-one-out baseline): exact per-sample variances from E[g²] (docs/literature.md §1.2); for the
   leave-one-out baseline the exact column is the constant baseline b = E[cos^k], which it
   approaches as N grows.
 

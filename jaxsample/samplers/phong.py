@@ -19,7 +19,7 @@ from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minu
 class PhongLobe(Sampler):
     """cos^n lobe about +z: p(ω) = (n + 1)/(2π) cos^n θ over solid angle on z >= 0, 0 below.
 
-    Inversion (Chuang, *Monte Carlo Integration*; reference.md): the marginal CDF of μ = cos θ is
+    Inversion (Chuang, *Monte Carlo Integration*; docs/reference.md): the marginal CDF of μ = cos θ is
     μ^{n+1}, so μ = ξ^{1/(n+1)} with ξ uniform; we use ξ = 1 - u₀, so that u₀ = 0 is the pole and
     u₀ -> 1 the horizon, and log ξ = log1p(-u₀) stays finite on [0, 1).
 

@@ -1,4 +1,4 @@
-"""Layer 7, the scene: only what one shading point needs (design.md).
+"""Layer 7, the scene: only what one shading point needs (docs/design.md).
 
 BRDFs (`Lambertian`, `Phong`) work in the local shading frame (normal +z) and have `eval`,
 `sample` and `pdf`; lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `EnvironmentMap`) work in
