@@ -27,7 +27,7 @@ import numpy as np
 
 import jaxsample as js
 from jaxsample import uniforms as U
-from jaxsample.estimators.engine import estimate, run_stream
+from jaxsample.estimators import estimate, run_stream
 
 from jaxsample.report.numpy_baseline import AXIS, cos3, everything, median_time, numpy_estimate, tilted, uniform_floor
 from jaxsample.report.timing import interleaved_medians
@@ -36,7 +36,7 @@ N = 1 << 24
 
 MEMORY_CHILD = """
 import resource, sys, jax, jaxsample as js
-from jaxsample.estimators.engine import estimate, run_stream
+from jaxsample.estimators import estimate, run_stream
 n = int(sys.argv[1])
 f = jax.jit(lambda k: estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), k, n).mean)
 print(float(f(jax.random.key(0))), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)

@@ -33,7 +33,7 @@ import pytest
 
 import jaxsample as js
 from jaxsample import scene
-from jaxsample.estimators.variance_reduction import (estimate_antithetic, estimate_control_variate,
+from jaxsample.estimators import (estimate_antithetic, estimate_control_variate,
     estimate_mis, estimate_ratio)
 
 K = 512

@@ -19,7 +19,9 @@ import pytest
 import jaxsample as js
 from jaxsample.samplers.base import Sampler
 from jaxsample._core.pytree import pytree_dataclass
-from jaxsample.estimators.engine import Estimate, _empty_moments, _merge, _Moments, estimate
+from jaxsample.estimators.engine import _empty_moments, _merge, _Moments
+from jaxsample.estimators.plain import estimate
+from jaxsample.estimators.result import Estimate
 
 jax.config.update("jax_debug_key_reuse", True)
 
@@ -253,7 +255,7 @@ SHARDED_SCRIPT = textwrap.dedent("""
     os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=4"
     import jax, jax.numpy as jnp, numpy as np
     import jaxsample as js
-    from jaxsample.estimators.engine import estimate
+    from jaxsample.estimators.plain import estimate
     assert jax.device_count() == 4
     mesh = jax.make_mesh((4,), ("samples",))
     f = lambda w: jnp.maximum(w[0] + 0.5 * w[1] + w[2], 0.0) ** 3

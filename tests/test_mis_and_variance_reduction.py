@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import jaxsample as js
-from jaxsample.estimators.engine import estimate
-from jaxsample.estimators.variance_reduction import (estimate_antithetic, estimate_control_variate,
+from jaxsample.estimators.plain import estimate
+from jaxsample.estimators import (estimate_antithetic, estimate_control_variate,
     estimate_mis, estimate_ratio)
 
 jax.config.update("jax_debug_key_reuse", True)

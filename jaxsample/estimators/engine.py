@@ -1,6 +1,7 @@
-"""Layer 4: the Monte Carlo estimator ∫ f dμ ≈ (1/n) Σ f(x_i) / p(x_i), in constant memory.
+"""Layer 4: the streaming engine behind every estimator: ∫ f dμ ≈ (1/n) Σ f(x_i) / p(x_i), in constant memory.
 
-`estimate(f, sampler, key, n)` draws x_i = sampler.warp(u_i) from a uniform source
+`run_stream` averages per-sample values over a counter-based uniform stream; `estimate(f, sampler,
+key, n)` (`plain.py`) draws x_i = sampler.warp(u_i) from a uniform source
 (`jaxsample.uniforms`), averages Y_i = f(x_i)/p(x_i) (0 where p = 0, in value and gradient) and
 returns an `Estimate` with the mean, its standard error and diagnostics.
 
@@ -37,84 +38,26 @@ chunk instead of storing it: gradient memory does not grow with n either.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
-from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.params import check_choice, default_float_dtype
+from .._core.params import default_float_dtype
 from .._core.pytree import pytree_dataclass
 from .._core import doublefloat
 from .._core.computed_once import computed_once
 from .._core.lanes import lane_map
 from .._core.numerics import safe_div, safe_sqrt
 from ..uniforms import Source, as_source, seed_from_key
+from .result import Estimate
 
-__all__ = ["Estimate", "estimate", "integrand_values", "DEFAULT_CHUNK_SIZE"]
+__all__ = ["run_stream", "tree_sum", "DEFAULT_CHUNK_SIZE"]
 
 DEFAULT_CHUNK_SIZE = 1 << 16
 _BLOCK = 256
-_NORMAL_QUANTILE_975 = 1.959963984540054
-
-
-@pytree_dataclass(static=("n", "replicates"))
-class Estimate:
-    """A Monte Carlo estimate; a pytree (mean, stderr and diagnostics are leaves).
-
-    - `mean`: the estimate of the integral (shape of f's value).
-    - `stderr`: its standard error (see the module docstring for how replicates are used).
-    - `variance`: the sample variance of the per-sample values Y = f/p (for Sobol' and stratified
-      points this is *not* the estimator's variance times n; use `stderr`).
-    - `max_abs`: the largest |Y| seen, a check for heavy tails (a few samples dominating).
-    - `ess`: effective sample size (Σ|Y|)² / Σ Y², n for constant Y; small values warn that the
-      variance, and so the stderr, may be unreliable (Kong 1992; Owen 2013, ch. 9).
-    - `n`, `replicates`: static.
-
-    If some Y = f/p is not finite (f returned ±inf or NaN, or a float sum overflowed), `mean` is
-    what IEEE arithmetic gives for the plain sum (±inf; NaN for a NaN or for infinities of both
-    signs), `stderr` and `variance` are inf, `ess` is 0 and `max_abs` is inf or NaN: under jit the
-    estimator cannot raise, so test `jnp.isfinite(est.stderr)`.
-    """
-
-    mean: jax.Array
-    stderr: jax.Array
-    variance: jax.Array
-    max_abs: jax.Array
-    ess: jax.Array
-    n: int = 0
-    replicates: int = 1
-
-    def interval(self, level: float = 0.95) -> tuple[jax.Array, jax.Array]:
-        """Normal-approximation interval mean ± z stderr (z = 1.96 for 95%)."""
-        z = _normal_quantile(0.5 + 0.5 * level)
-        return self.mean - z * self.stderr, self.mean + z * self.stderr
-
-    def chebyshev_interval(self, level: float = 0.95) -> tuple[jax.Array, jax.Array]:
-        """Distribution-free interval mean ± k stderr with k = 1/sqrt(1 - level) (4.47 for 95%).
-
-        By Chebyshev's inequality P(|mean - I| >= k σ) <= 1/k² for *any* distribution with finite
-        variance σ² of the mean; it is exact given σ, approximate when σ is the estimated stderr.
-        """
-        k = 1.0 / math.sqrt(1.0 - level)
-        return self.mean - k * self.stderr, self.mean + k * self.stderr
-
-
-def _normal_quantile(p: float) -> float:
-    if abs(p - 0.975) < 1e-12:
-        return _NORMAL_QUANTILE_975
-    # Acklam-free: bisection on erf, only at trace time (p is a Python float).
-    lo, hi = -10.0, 10.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if 0.5 * (1.0 + math.erf(mid / math.sqrt(2.0))) < p:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -336,72 +279,3 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
     moments = jax.shard_map(local, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec(),
                             check_vma=False)(seed)
     return _finish(moments, n, replicates)
-
-
-# ----------------------------------------------------------------------------------------------
-# estimate
-# ----------------------------------------------------------------------------------------------
-
-
-def _detach(mode: str, *arrays):
-    check_choice("estimate", "mode", mode, ("attached", "detached"))
-    if mode == "detached":
-        return jax.lax.stop_gradient(arrays)
-    return arrays
-
-
-def _broadcast_pdf(pdf, values):
-    return pdf.reshape(pdf.shape + (1,) * (values.ndim - pdf.ndim))
-
-
-def _output_shape(f, sampler, dims: int, dtype):
-    u = jax.ShapeDtypeStruct((dims,), dtype)
-    out = jax.eval_shape(lambda u: f(sampler.warp(u)), u)
-    return tuple(out.shape)
-
-
-def integrand_values(f: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
-                     mode: str = "attached") -> jax.Array:
-    """The per-sample values Y_i = f(x_i)/p(x_i), x_i = sampler.warp(u_i), that `estimate` averages.
-
-    `u` is a (count, uniform_dims) block; the result is (count, *f's output shape), 0 where p = 0.
-    `mode` is applied to the sample and its density together (see `estimate`). Differentiating
-    this function per sample (e.g. `jax.vmap(jax.grad(...))` over rows of u) gives the per-sample
-    gradients whose mean is the gradient of `estimate`, and whose spread is its variance.
-    """
-    x, pdf = sampler.warp_with_pdf(u)
-    x, pdf = _detach(mode, x, pdf)
-    fx = jax.vmap(f)(x)
-    return safe_div(fx, _broadcast_pdf(pdf, fx))
-
-
-def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
-             uniforms="random", mode: str = "attached", mesh=None, chunk_size: int | None = None,
-             dtype=None) -> Estimate:
-    """∫ f dμ as the mean of f(x)/p(x) over n samples of `sampler` (μ is the sampler's measure).
-
-    Args:
-      f: maps ONE sample (shape `sampler.event_shape`) to a value (any fixed shape); it is vmapped.
-      sampler: any `jaxsample.Sampler` (a pytree: its parameters may be traced).
-      key: a typed `jax.random.key`; consumed once (turned into the source's seed words).
-      n: number of samples, a Python int (a multiple of the source's replicates x devices).
-      uniforms: "random" (default, Philox4x32-10), "stratified", "sobol" or a `uniforms.Source`.
-      mode: "attached" (pathwise: sample and pdf move with the parameters) or "detached"
-        (sample and pdf are constants together; only f carries derivatives).
-      mesh: a `jax.sharding.Mesh`; the n samples are split evenly over all its devices, each
-        drawing its own index range of the same stream, and combined with `psum`.
-      chunk_size: samples per streamed chunk (default 2^16; a multiple of 4 and of replicates).
-      dtype: float dtype of the uniforms (default float32, float64 under jax_enable_x64).
-
-    Returns: `Estimate`. Y = f/p is 0 where p = 0, with finite gradients there.
-    """
-    check_choice("estimate", "mode", mode, ("attached", "detached"))
-    dims = sampler.uniform_dims
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
-    out_shape = _output_shape(f, sampler, dims, dtype)
-
-    def values_fn(u):
-        return integrand_values(f, sampler, u, mode=mode)
-
-    return run_stream(values_fn, dims, key, n, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
-                      out_shape=out_shape, dtype=dtype)

@@ -41,7 +41,9 @@ import jax
 import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
-from .engine import Estimate, integrand_values, run_stream
+from .engine import run_stream
+from .plain import integrand_values, output_shape
+from .result import Estimate
 
 __all__ = ["expectation", "expectation_values", "integrand_values"]
 
@@ -121,8 +123,7 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         baseline = jax.lax.stop_gradient(jnp.asarray(baseline))
     dims = sampler.uniform_dims
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
-    out_shape = tuple(jax.eval_shape(lambda u: g(sampler.warp(u)),
-                                     jax.ShapeDtypeStruct((dims,), dtype)).shape)
+    out_shape = output_shape(g, sampler, dtype)
     common = dict(uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype,
                   owner="expectation")
 

@@ -1,10 +1,8 @@
-"""Estimators beyond the plain mean: multiple importance sampling and variance reduction.
+"""Variance reduction beyond the plain mean (multiple importance sampling is in `mis.py`).
 
-All of them run on the streaming engine of `jaxsample.estimate` (constant memory, the same
+All of them run on the streaming engine (`engine.py`) (constant memory, the same
 counter-based uniform sources, chunking-invariant) and return an `Estimate`.
 
-- `estimate_mis`: multi-sample MIS with the balance or power heuristic (Veach & Guibas 1995;
-  Veach 1997, ch. 9). Unbiased for any heuristic whose weights sum to 1 where f != 0.
 - `estimate_ratio`: the self-normalized (ratio) estimator ∫f / ∫h; biased, bias O(1/n).
 - `estimate_antithetic`: antithetic pairs u, 1 - u (Hammersley & Morton 1956).
 - `estimate_control_variate`: f - c (g - G) with ∫g = G known and c estimated from the same
@@ -13,64 +11,18 @@ counter-based uniform sources, chunking-invariant) and return an `Estimate`.
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Callable
 
 import jax
 import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
-from .engine import Estimate, _broadcast_pdf, _detach, run_stream
+from .engine import run_stream
+from .plain import _broadcast_pdf, _detach, output_shape
+from .result import Estimate
 from .._core.numerics import safe_div, safe_sqrt
 
-__all__ = ["estimate_mis", "estimate_ratio", "estimate_antithetic", "estimate_control_variate"]
-
-
-def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequence[int], *,
-                 heuristic: str = "balance", beta: float = 2.0, uniforms="random",
-                 mode: str = "attached", chunk_size: int | None = None, dtype=None) -> Estimate:
-    """Multi-sample MIS: Σ_i (1/n_i) Σ_j w_i(x_ij) f(x_ij) / p_i(x_ij), x_ij ~ samplers[i].
-
-    Weights (Veach 1997, eqs. 9.4 and 9.5), with q_k = n_k p_k(x):
-      "balance": w_i = q_i / Σ_k q_k;  "power": w_i = q_i^β / Σ_k q_k^β (β = `beta`, default 2).
-    Both sum to 1 wherever some p_k > 0, so the estimate is unbiased. Each technique draws from
-    its own key (split from `key`); techniques are independent, so stderr² = Σ_i stderr_i².
-    All samplers must share a domain and measure. `mode="detached"` stops the gradient of the
-    sample, its density and every density in the weight together.
-    """
-    check_choice("estimate_mis", "heuristic", heuristic, ("balance", "power"))
-    check_choice("estimate_mis", "mode", mode, ("attached", "detached"))
-    samplers = list(samplers)
-    counts = [int(c) for c in counts]
-    if len(samplers) != len(counts) or not samplers:
-        raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
-    exponent = 1.0 if heuristic == "balance" else beta
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
-    keys = jax.random.split(key, len(samplers))
-    parts = []
-    for i, (sampler, count) in enumerate(zip(samplers, counts)):
-
-        def values_fn(u, i=i, sampler=sampler):
-            x, own_pdf = sampler.warp_with_pdf(u)
-            pdfs = [own_pdf if k == i else other.pdf(x) for k, other in enumerate(samplers)]
-            x, pdfs = _detach(mode, x, pdfs)
-            scaled = [(n_k * p_k) ** exponent for n_k, p_k in zip(counts, pdfs)]
-            weight = safe_div(scaled[i], sum(scaled))
-            fx = jax.vmap(f)(x)
-            return safe_div(fx * _broadcast_pdf(weight, fx), _broadcast_pdf(pdfs[i], fx))
-
-        parts.append(run_stream(values_fn, sampler.uniform_dims, keys[i], count, uniforms=uniforms,
-                                chunk_size=chunk_size, dtype=dtype, owner="estimate_mis",
-                                out_shape=_out_shape(f, sampler, dtype)))
-    total = sum(counts)
-    stderr = safe_sqrt(sum(p.stderr * p.stderr for p in parts))
-    return Estimate(mean=sum(p.mean for p in parts), stderr=stderr, variance=total * stderr * stderr,
-                    max_abs=jnp.max(jnp.stack([p.max_abs for p in parts]), axis=0),
-                    ess=sum(p.ess for p in parts), n=total, replicates=parts[0].replicates)
-
-
-def _out_shape(f, sampler, dtype):
-    u = jax.ShapeDtypeStruct((sampler.uniform_dims,), dtype)
-    return tuple(jax.eval_shape(lambda u: f(sampler.warp(u)), u).shape)
+__all__ = ["estimate_ratio", "estimate_antithetic", "estimate_control_variate"]
 
 
 def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, owner):
@@ -134,7 +86,7 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
 
     est = run_stream(lambda u: 0.5 * (one(u) + one(1.0 - u)), sampler.uniform_dims, key, n // 2,
                      uniforms=uniforms, chunk_size=chunk_size, dtype=dtype, mesh=mesh,
-                     out_shape=_out_shape(f, sampler, dtype), owner="estimate_antithetic")
+                     out_shape=output_shape(f, sampler, dtype), owner="estimate_antithetic")
     # Per-evaluation variance equivalent, so that variances compare at equal cost.
     return Estimate(mean=est.mean, stderr=est.stderr, variance=est.stderr * est.stderr * n,
                     max_abs=est.max_abs, ess=2.0 * est.ess, n=n, replicates=est.replicates)

@@ -2,7 +2,7 @@
 
 There is no ray tracer: lights are transparent, nothing occludes, and L_i(ω) is the sum of what
 every light emits along ω. Three strategies estimate the integral on the streaming engine of
-`jaxsample.estimate` (`run_stream`: constant memory, counter-based uniforms, jit/vmap/grad):
+`jaxsample.estimators.engine` (`run_stream`: constant memory, counter-based uniforms, jit/vmap/grad):
 
 - "brdf": ω_i from the BRDF's sampler, Y = f_r L_i cos θ_i / p_brdf.
 - "light": ω_i from the lights, Y = f_r L_i cos θ_i / p_light. With K lights, one is chosen
@@ -36,7 +36,8 @@ import jax
 import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
-from ..estimators.engine import Estimate, run_stream
+from ..estimators.engine import run_stream
+from ..estimators.result import Estimate
 from ..samplers.frame import Frame
 from .._core.numerics import safe_div
 
