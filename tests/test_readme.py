@@ -24,3 +24,11 @@ def test_readme_block_runs_outside_the_checkout(index, tmp_path):
     result = subprocess.run([sys.executable, "-c", BLOCKS[index]], cwd=tmp_path, capture_output=True, text=True,
                             timeout=600)
     assert result.returncode == 0, f"README block {index}:\n{BLOCKS[index]}\n{result.stderr[-3000:]}"
+
+
+def test_ci_runs_the_readme_test_command():
+    text = README.read_text()
+    command = next(line for block in re.findall(r"^```bash\n(.*?)^```", text, re.S | re.M)
+                   for line in block.splitlines() if "pytest" in line)
+    ci = (README.parent / ".ci" / "run").read_text().splitlines()
+    assert command in ci, (command, ci)

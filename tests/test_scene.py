@@ -10,8 +10,6 @@ reproducible. Each check is shown able to fail: a BRDF that misreports its densi
 """
 
 import functools
-import importlib.util
-import pathlib
 
 import jax
 import jax.numpy as jnp
@@ -398,16 +396,8 @@ def test_exponent_gradient_is_finite_and_agrees_between_modes():
         assert float(g[1]) == pytest.approx(albedo_reference, rel=2e-2)
 
 
-def _load_inverse_problem():
-    path = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "inverse_problem.py"
-    spec = importlib.util.spec_from_file_location("inverse_problem", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_a_short_inverse_problem_run_reduces_the_loss():
-    module = _load_inverse_problem()
+    from jaxsample.report import inverse_problem as module
     views = module.view_directions()
     observed = module.observations(views)
     result = module.fit(views, observed, "detached", 25, 512, jax.random.key(8))
