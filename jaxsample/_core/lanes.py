@@ -27,7 +27,6 @@ calls (functions under `jax.jit`) are inlined.
 
 from __future__ import annotations
 
-import itertools
 from typing import Callable
 
 import jax

@@ -42,7 +42,7 @@ import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
-from .plain import integrand_values, output_shape
+from .plain import broadcast_like, integrand_values, output_shape
 from .result import Estimate
 
 __all__ = ["expectation", "expectation_values", "integrand_values"]
@@ -59,10 +59,6 @@ def _detached_log_pdf(sampler, x):
     log_p = sampler.log_pdf(x)
     finite = jnp.isfinite(log_p)
     return jnp.where(finite, jnp.where(finite, log_p, 0.0), 0.0)
-
-
-def _broadcast(a, like):
-    return a.reshape(a.shape + (1,) * (like.ndim - a.ndim))
 
 
 def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
@@ -85,7 +81,7 @@ def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Arra
     x = jax.lax.stop_gradient(sampler.warp(u))
     gx = jax.vmap(g)(x)
     log_p = _detached_log_pdf(sampler, x)
-    score = _broadcast(log_p - jax.lax.stop_gradient(log_p), gx)
+    score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
     centred = gx if baseline is None else gx - baseline
     return gx + score * jax.lax.stop_gradient(centred)
 
@@ -139,7 +135,7 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         x = jax.lax.stop_gradient(sampler.warp(u))
         gx = jax.vmap(g)(x)
         log_p = _detached_log_pdf(sampler, x)
-        score = _broadcast(log_p - jax.lax.stop_gradient(log_p), gx)
+        score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
         return jnp.stack([gx, score * jax.lax.stop_gradient(gx), score * jnp.ones_like(gx)], axis=1)
 
     est = run_stream(stacked_fn, dims, key, n, out_shape=(3,) + out_shape, **common)

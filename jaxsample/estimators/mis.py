@@ -11,7 +11,7 @@ import jax.numpy as jnp
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
-from .plain import _broadcast_pdf, _detach, output_shape
+from .plain import _detach, broadcast_like, check_mode, output_shape
 from .result import Estimate
 
 __all__ = ["estimate_mis"]
@@ -30,7 +30,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     sample, its density and every density in the weight together.
     """
     check_choice("estimate_mis", "heuristic", heuristic, ("balance", "power"))
-    check_choice("estimate_mis", "mode", mode, ("attached", "detached"))
+    check_mode("estimate_mis", mode)
     samplers = list(samplers)
     counts = [int(c) for c in counts]
     if len(samplers) != len(counts) or not samplers:
@@ -48,7 +48,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
             scaled = [(n_k * p_k) ** exponent for n_k, p_k in zip(counts, pdfs)]
             weight = safe_div(scaled[i], sum(scaled))
             fx = jax.vmap(f)(x)
-            return safe_div(fx * _broadcast_pdf(weight, fx), _broadcast_pdf(pdfs[i], fx))
+            return safe_div(fx * broadcast_like(weight, fx), broadcast_like(pdfs[i], fx))
 
         parts.append(run_stream(values_fn, sampler.uniform_dims, keys[i], count, uniforms=uniforms,
                                 chunk_size=chunk_size, dtype=dtype, owner="estimate_mis",

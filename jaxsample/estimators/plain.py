@@ -19,15 +19,26 @@ from .result import Estimate
 __all__ = ["estimate", "integrand_values"]
 
 
+MODES = ("attached", "detached")
+
+
+def check_mode(owner: str, mode: str) -> None:
+    """ValueError unless `mode` is "attached" or "detached" (the gradient choice of every estimator)."""
+    check_choice(owner, "mode", mode, MODES)
+
+
 def _detach(mode: str, *arrays):
-    check_choice("estimate", "mode", mode, ("attached", "detached"))
+    """`arrays` (a sample, its density, MIS densities) with their gradient stopped together when
+    mode is "detached": stopping some of them and not the others is biased."""
+    check_mode("estimate", mode)
     if mode == "detached":
         return jax.lax.stop_gradient(arrays)
     return arrays
 
 
-def _broadcast_pdf(pdf, values):
-    return pdf.reshape(pdf.shape + (1,) * (values.ndim - pdf.ndim))
+def broadcast_like(per_sample, values):
+    """A per-sample array (count,) with trailing axes added to divide or scale `values` (count, *out)."""
+    return per_sample.reshape(per_sample.shape + (1,) * (values.ndim - per_sample.ndim))
 
 
 def output_shape(f, sampler, dtype) -> tuple[int, ...]:
@@ -48,7 +59,7 @@ def integrand_values(f: Callable[[jax.Array], jax.Array], sampler, u: jax.Array,
     x, pdf = sampler.warp_with_pdf(u)
     x, pdf = _detach(mode, x, pdf)
     fx = jax.vmap(f)(x)
-    return safe_div(fx, _broadcast_pdf(pdf, fx))
+    return safe_div(fx, broadcast_like(pdf, fx))
 
 
 def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
@@ -71,7 +82,7 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
 
     Returns: `Estimate`. Y = f/p is 0 where p = 0, with finite gradients there.
     """
-    check_choice("estimate", "mode", mode, ("attached", "detached"))
+    check_mode("estimate", mode)
     dims = sampler.uniform_dims
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     out_shape = output_shape(f, sampler, dtype)

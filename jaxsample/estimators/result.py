@@ -43,6 +43,13 @@ class Estimate:
         z = _normal_quantile(0.5 + 0.5 * level)
         return self.mean - z * self.stderr, self.mean + z * self.stderr
 
+    def per_evaluation(self, n: int) -> "Estimate":
+        """This estimate of n/2 pairs (antithetic pairs, one BRDF and one light sample) restated at
+        its cost of n evaluations: `variance` per evaluation (stderr² n) and `ess` counted in
+        evaluations, so that strategies compare at equal cost by `variance`."""
+        return Estimate(mean=self.mean, stderr=self.stderr, variance=self.stderr * self.stderr * n,
+                        max_abs=self.max_abs, ess=2.0 * self.ess, n=n, replicates=self.replicates)
+
     def chebyshev_interval(self, level: float = 0.95) -> tuple[jax.Array, jax.Array]:
         """Distribution-free interval mean ± k stderr with k = 1/sqrt(1 - level) (4.47 for 95%).
 

@@ -16,9 +16,9 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from .._core.params import check_choice, default_float_dtype
+from .._core.params import default_float_dtype
 from .engine import run_stream
-from .plain import _broadcast_pdf, _detach, output_shape
+from .plain import _detach, broadcast_like, check_mode, output_shape
 from .result import Estimate
 from .._core.numerics import safe_div, safe_sqrt
 
@@ -27,7 +27,7 @@ __all__ = ["estimate_ratio", "estimate_antithetic", "estimate_control_variate"]
 
 def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, owner):
     """Estimate of the vector (Y, Z, Y + Z), Y = f/p, Z = h/p: the diagonal variances give Cov."""
-    check_choice(owner, "mode", mode, ("attached", "detached"))
+    check_mode(owner, mode)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
 
     def values_fn(u):
@@ -73,7 +73,7 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
     CosineHemisphere maps 1 - u to the reflected point, so a rotationally symmetric f gets ρ = 1.
     The stderr comes from the pair means (independent); `n` must be even.
     """
-    check_choice("estimate_antithetic", "mode", mode, ("attached", "detached"))
+    check_mode("estimate_antithetic", mode)
     if not isinstance(n, int) or n % 2:
         raise ValueError(f"estimate_antithetic: parameter 'n' must be an even int; got {n!r}")
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
@@ -82,14 +82,12 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
         x, pdf = sampler.warp_with_pdf(u)
         x, pdf = _detach(mode, x, pdf)
         fx = jax.vmap(f)(x)
-        return safe_div(fx, _broadcast_pdf(pdf, fx))
+        return safe_div(fx, broadcast_like(pdf, fx))
 
     est = run_stream(lambda u: 0.5 * (one(u) + one(1.0 - u)), sampler.uniform_dims, key, n // 2,
                      uniforms=uniforms, chunk_size=chunk_size, dtype=dtype, mesh=mesh,
                      out_shape=output_shape(f, sampler, dtype), owner="estimate_antithetic")
-    # Per-evaluation variance equivalent, so that variances compare at equal cost.
-    return Estimate(mean=est.mean, stderr=est.stderr, variance=est.stderr * est.stderr * n,
-                    max_abs=est.max_abs, ess=2.0 * est.ess, n=n, replicates=est.replicates)
+    return est.per_evaluation(n)
 
 
 def estimate_control_variate(f: Callable, g: Callable, g_integral, sampler, key: jax.Array, n: int,

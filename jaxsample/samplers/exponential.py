@@ -18,7 +18,7 @@ from .base import Sampler
 from .._core.params import check_parameter, concrete_value
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Interval
-from .._core.numerics import safe_log
+
 
 # Beyond 80 mean free paths the exponential has mass e^-80 < 1e-34: the quadrature stops there.
 _TAIL_MEAN_FREE_PATHS = 80.0

@@ -4,10 +4,6 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import jax
-import jax.numpy as jnp
-import numpy as np
-
 from .base import Sampler, WrapsSampler
 from .._core.params import concrete_value
 from .._core.pytree import pytree_dataclass

@@ -30,13 +30,13 @@ depends on what the parameter moves:
 
 from __future__ import annotations
 
-from typing import Sequence
 
 import jax
 import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
 from ..estimators.engine import run_stream
+from ..estimators.plain import check_mode
 from ..estimators.result import Estimate
 from ..samplers.frame import Frame
 from .._core.numerics import safe_div
@@ -156,7 +156,7 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     per-evaluation variance, so strategies compare at equal cost.
     """
     check_choice("shade", "strategy", strategy, STRATEGIES)
-    check_choice("shade", "mode", mode, ("attached", "detached"))
+    check_mode("shade", mode)
     check_choice("shade", "heuristic", heuristic, ("power", "balance"))
     if not isinstance(n, int) or n < 2 or (strategy == "mis" and n % 2):
         raise ValueError(f"shade: parameter 'n' must be a Python int >= 2 (even for 'mis'); got {n!r}")
@@ -190,6 +190,4 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
                      chunk_size=chunk_size, out_shape=(), dtype=dtype, owner="shade")
     if count == n:
         return est
-    # One pair costs two evaluations: report the per-evaluation variance, as estimate_antithetic.
-    return Estimate(mean=est.mean, stderr=est.stderr, variance=est.stderr * est.stderr * n,
-                    max_abs=est.max_abs, ess=2.0 * est.ess, n=n, replicates=est.replicates)
+    return est.per_evaluation(n)  # one pair costs two evaluations
