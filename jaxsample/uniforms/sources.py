@@ -12,7 +12,7 @@ Sources
   arithmetic so that XLA fuses it with the warp and the integrand. Philox4x32-10 passes TestU01's
   SmallCrush, Crush and BigCrush (Salmon et al. 2011, table 2; 7 rounds are already Crush
   resistant, 10 is the recommended safety margin). Our implementation is checked against the
-  Random123 known-answer vectors (`tests/test_uniforms.py`), and by our own uniformity and serial
+  Random123 known-answer vectors (`tests/uniforms/test_uniforms.py`), and by our own uniformity and serial
   correlation tests.
 - `Stratified(replicates)` ("stratified"): jittered sampling; see its docstring for exactly which
   dimensions are stratified.

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from issue3_helpers import WrongWarp, check_finite_at_edges, run_chi2
+from helpers import WrongWarp, check_finite_at_edges, run_chi2
 from jaxsample.samplers.discrete import Discrete, build_alias_table
 from jaxsample.checks.sampler_checks import normalization
 

@@ -80,7 +80,7 @@ def test_unbiased_replicated_sources(uniforms):
     The stderr is far below plain MC's: over 64 keys its true value (the mean reported stderr
     over c4(16)) is 0.0219 (stratified) and 0.0039 (Sobol') of plain MC's; a reported stderr is
     that times sqrt(χ²₁₅/15), which exceeds the bound 0.05 with probability 1.3e-10 (stratified)
-    and < 1e-100 (Sobol'). Its calibration is in tests/test_calibration.py."""
+    and < 1e-100 (Sobol'). Its calibration is in tests/estimators/test_calibration.py."""
     e = jax.jit(lambda key: estimate(cos3, js.CosineHemisphere(), key, 1 << 18, uniforms=uniforms))(next(KEYS))
     assert e.replicates == 16
     assert abs(float(e.mean) - HALF_PI) <= 7 * float(e.stderr) + 2e-6

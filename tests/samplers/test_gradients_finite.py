@@ -206,7 +206,7 @@ CASES = [
 
 # The issue's named hard cases run in both precisions; the other samplers' parameters (whose
 # formulas have no float32-specific branch) in float32 only, to keep compilation time down.
-# (tests/test_one_dimensional.py checks the truncated exponential and power law at their extremes
+# (tests/samplers/test_one_dimensional.py checks the truncated exponential and power law at their extremes
 # in float64 already.)
 BOTH_PRECISIONS = (phong, vmf, cone_from_solid_angle, exponential, disk_concentric, cosine_malley)
 

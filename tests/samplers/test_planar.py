@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from issue3_helpers import WrongWarp, assert_finite, check_finite_at_edges, edge_uniforms, run_chi2
+from helpers import WrongWarp, assert_finite, check_finite_at_edges, edge_uniforms, run_chi2
 from jaxsample.samplers.box import UniformBox
 from jaxsample.samplers.disk import UniformDisk
 from jaxsample.checks.sampler_checks import inverse_error, jacobian_error, normalization

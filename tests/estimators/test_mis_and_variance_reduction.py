@@ -5,7 +5,7 @@ FFRs: a mean checked against the exact value within 6 estimated stderrs fails wi
 Variance ratios: each bound is stated with the mean ± sd of the same ratio over 64 keys (measured
 once, same estimator and n); every bound is at least 12 such sd away (normal FFR < 1e-30).
 The weights themselves are checked deterministically against hand computations (no FFR), and
-tests/test_calibration.py holds every error bar to the spread of its estimates.
+tests/estimators/test_calibration.py holds every error bar to the spread of its estimates.
 """
 
 import jax

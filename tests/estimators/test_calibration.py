@@ -21,7 +21,7 @@ mean of the K means is also held to it within 5 sd / sqrt(K) (FFR 5.7e-7 per pat
 
 Gradient estimators (`expectation(..., gradient=...)`, `estimate(..., mode=...)`) report no
 spread of their own (the stderr they return is the value's, checked here for the leave-one-out
-path); their per-sample variances are held to the exact ones in tests/test_gradients.py.
+path); their per-sample variances are held to the exact ones in tests/estimators/test_gradients.py.
 """
 
 import math

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from issue3_helpers import WrongWarp, check_finite_at_edges, run_chi2
+from helpers import WrongWarp, check_finite_at_edges, run_chi2
 from jaxsample.samplers.box import UniformBox
 from jaxsample.samplers.disk import UniformDisk
 from jaxsample.checks.domains import Directions, Disk

@@ -46,7 +46,7 @@ def test_tiny_report_writes_tables_and_plots_with_finite_numbers(tmp_path):
 
 
 def test_the_package_never_edits_sys_path_or_imports_checkout_files():
-    package = Path(__file__).resolve().parent.parent / "jaxsample"
+    package = Path(__file__).resolve().parents[2] / "jaxsample"
     for path in package.rglob("*.py"):
         text = path.read_text()
         assert "sys.path" not in text and "spec_from_file_location" not in text, path
