@@ -3,6 +3,7 @@ or power heuristic (Veach & Guibas 1995; Veach 1997, ch. 9), on the streaming en
 
 from __future__ import annotations
 
+import functools
 from typing import Callable, Sequence
 
 import jax
@@ -14,7 +15,23 @@ from .engine import run_stream
 from .plain import _detach, broadcast_like, check_mode, output_shape
 from .result import Estimate
 
-__all__ = ["estimate_mis"]
+__all__ = ["estimate_mis", "heuristic_weights"]
+
+
+def heuristic_weights(densities: Sequence[jax.Array], exponent: float) -> list[jax.Array]:
+    """The MIS weights w_k = q_k^β / Σ_j q_j^β of one point's densities q_k (each already times its
+    sample count; β = 1 is the balance heuristic, β = 2 the power heuristic). They sum to 1 where
+    some q_k > 0 and are all 0 where every q_k = 0.
+
+    Computed after dividing every q_k by the largest, so that no power overflows (a tiny light's
+    density is 1/(2π · 5e-9) ≈ 3e7, and squares of densities beyond 1e19 overflow float32) and the
+    gradient stays finite.
+    """
+    largest = functools.reduce(jnp.maximum, densities)
+    scale = jnp.where(largest > 0, largest, 1.0)
+    powered = [(q / scale) ** exponent for q in densities]
+    total = sum(powered)
+    return [safe_div(p, total) for p in powered]
 
 
 def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequence[int], *,
@@ -45,8 +62,8 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
             x, own_pdf = sampler.warp_with_pdf(u)
             pdfs = [own_pdf if k == i else other.pdf(x) for k, other in enumerate(samplers)]
             x, pdfs = _detach(mode, x, pdfs)
-            scaled = [(n_k * p_k) ** exponent for n_k, p_k in zip(counts, pdfs)]
-            weight = safe_div(scaled[i], sum(scaled))
+            weights = heuristic_weights([n_k * p_k for n_k, p_k in zip(counts, pdfs)], exponent)
+            weight = weights[i]
             fx = jax.vmap(f)(x)
             return safe_div(fx * broadcast_like(weight, fx), broadcast_like(pdfs[i], fx))
 

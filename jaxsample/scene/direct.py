@@ -36,6 +36,7 @@ import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
 from ..estimators.engine import run_stream
+from ..estimators.mis import heuristic_weights
 from ..estimators.plain import check_mode
 from ..estimators.result import Estimate
 from ..samplers.frame import Frame
@@ -55,14 +56,9 @@ def _as_tuple(lights) -> tuple:
 
 
 def mis_weight(own_pdf, other_pdf, exponent: float):
-    """w = p_own^β / (p_own^β + p_other^β), computed after dividing both by the larger one, so
-    that neither overflows (a tiny light's density is 1/(2π · 5e-9) ≈ 3e7; squared powers of
-    densities beyond 1e19 overflow float32) and the gradient stays finite. 0 when both are 0."""
-    largest = jnp.maximum(own_pdf, other_pdf)
-    scale = jnp.where(largest > 0, largest, 1.0)
-    own = (own_pdf / scale) ** exponent
-    other = (other_pdf / scale) ** exponent
-    return jnp.where(largest > 0, own / (own + other), 0.0)
+    """w = p_own^β / (p_own^β + p_other^β), 0 when both are 0 (`estimators.mis.heuristic_weights`:
+    scaled so that neither power overflows and the gradient stays finite)."""
+    return heuristic_weights([own_pdf, other_pdf], exponent)[0]
 
 
 class _Shading:
