@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxsample.discrete import Discrete
+from jaxsample.samplers.discrete import Discrete
 
 BATCH = 1 << 22
 REPEATS = 7

@@ -18,10 +18,8 @@ floor with the warp's arithmetic added, then its square root, then the division 
 
 import json
 import os
-import statistics
 import subprocess
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
@@ -29,84 +27,16 @@ import numpy as np
 
 import jaxsample as js
 from jaxsample import uniforms as U
-from jaxsample.estimate import estimate, run_stream
+from jaxsample.estimators import estimate, run_stream
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from timing import interleaved_medians  # noqa: E402
+from jaxsample.report.numpy_baseline import AXIS, cos3, everything, median_time, numpy_estimate, tilted, uniform_floor
+from jaxsample.report.timing import interleaved_medians
 
 N = 1 << 24
-AXIS = np.array([0.3, 0.2, 0.9327379], np.float32)
-
-
-def median_time(fn, *args, repeats=5):
-    jax.block_until_ready(fn(*args))
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
-
-
-def numpy_estimate(n, seed=0, chunk=1 << 20, all_components=False, with_stderr=False):
-    """Straightforward vectorized NumPy float32: concentric map, Malley lift, f/p, chunked sum
-    (and, with_stderr, the sum of squares for the standard error)."""
-    rng = np.random.default_rng(seed)
-    total = squares = 0.0
-    for _ in range(n // chunk):
-        u = rng.random((chunk, 2), dtype=np.float32)
-        a, b = 2 * u[:, 0] - 1, 2 * u[:, 1] - 1
-        a_wins = np.abs(a) > np.abs(b)
-        r = np.where(a_wins, a, b)
-        z = np.sqrt(np.maximum((1 - r) * (1 + r), 0))
-        if all_components:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                phi = np.where(a_wins, np.float32(np.pi / 4) * (b / a),
-                               np.float32(np.pi / 2) - np.float32(np.pi / 4) * (a / b))
-            phi = np.nan_to_num(phi)
-            x, y = r * np.cos(phi), r * np.sin(phi)
-            f = np.maximum(x * AXIS[0] + y * AXIS[1] + z * AXIS[2], 0) ** 3
-        else:
-            f = z ** 3
-        p = z / np.float32(np.pi)
-        y = np.where(p > 0, f / np.where(p > 0, p, 1), 0)
-        total += float(np.sum(y, dtype=np.float32))
-        if with_stderr:
-            squares += float(np.dot(y, y))
-    mean = total / n
-    if with_stderr:
-        return mean, np.sqrt(max(squares / n - mean * mean, 0.0) / (n - 1))
-    return mean
-
-
-def cos3(w):
-    return w[2] ** 3
-
-
-def tilted(w):
-    # Written out: jnp.dot of one sample under vmap becomes an unfused XLA dot on CPU, measured
-    # ~10x slower here; the products fuse with the warp.
-    return jnp.maximum(w[0] * AXIS[0] + w[1] * AXIS[1] + w[2] * AXIS[2], 0.0) ** 3
-
-
-def uniform_floor(n, full: bool):
-    """Generating and summing the same uniforms with the same source, through the same engine
-    (chunking, materialization, accumulation): the warp and integrand replaced by u0 + u1."""
-    def run(key):
-        est = run_stream(lambda u: u[:, 0] + u[:, 1], 2, key, n)
-        return everything(est) if full else est.mean
-
-    return jax.jit(run)
-
-
-def everything(est):
-    """What a user of the whole Estimate pays for: mean, standard error and both diagnostics."""
-    return est.mean, est.stderr, est.ess, est.max_abs
-
 
 MEMORY_CHILD = """
 import resource, sys, jax, jaxsample as js
-from jaxsample.estimate import estimate, run_stream
+from jaxsample.estimators import estimate, run_stream
 n = int(sys.argv[1])
 f = jax.jit(lambda k: estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), k, n).mean)
 print(float(f(jax.random.key(0))), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
@@ -220,7 +150,7 @@ def main():
     # integrand is π(1 - u₀), smooth, and the points reach their n^-1.5 rate.
     logs = np.arange(10, 21, 2)
     n_eff = 1 << 20
-    var_random = np.pi ** 2 / 12 / n_eff             # exact (reference.md), either map
+    var_random = np.pi ** 2 / 12 / n_eff             # exact (docs/reference.md), either map
     sobol = {}
     for name, sampler in (("malley", cosine), ("inversion", inversion)):
         for dtype in ("float32", "float64"):

@@ -14,15 +14,15 @@ import numpy as np
 
 import jaxsample as js
 
-from jaxsample.box import UniformBox
-from jaxsample.discrete import Discrete
-from jaxsample.disk import UniformDisk
-from jaxsample.exponential import Exponential, TruncatedExponential
-from jaxsample.mixture import Mixture
-from jaxsample.piecewise import PiecewiseConstant1D, PiecewiseConstant2D
-from jaxsample.power import Power
-from jaxsample.testing import chi2_test, normalization
-from jaxsample.triangle import UniformTriangle
+from jaxsample.samplers.box import UniformBox
+from jaxsample.samplers.discrete import Discrete
+from jaxsample.samplers.disk import UniformDisk
+from jaxsample.samplers.exponential import Exponential, TruncatedExponential
+from jaxsample.samplers.mixture import Mixture
+from jaxsample.samplers.piecewise import PiecewiseConstant1D, PiecewiseConstant2D
+from jaxsample.samplers.power import Power
+from jaxsample.checks.sampler_checks import chi2_test, normalization
+from jaxsample.samplers.triangle import UniformTriangle
 
 
 def report(name, sampler, key, n_samples=200_000):

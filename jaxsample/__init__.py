@@ -3,32 +3,20 @@
 Samplers are immutable pytrees with `warp`, `pdf`, `log_pdf`, `inverse`, `sample` and
 `sample_with_pdf`; each class's docstring states the measure its density is over. Estimators turn
 them into integrals with standard errors under `jit`, `vmap`, `grad` and a device mesh.
+
+The folders are the layers (docs/design.md): `_core` (numerics, pytrees, parameter checks),
+`uniforms`, `samplers`, `estimators`, `checks` (public name `testing`), `quadrature`, `scene` and
+`report` (`python -m jaxsample report`). The public names are the ones below.
 """
 
 from . import domains, gradients, numerics, quadrature, scene, testing, uniforms
-from ._base import Sampler
-from .box import UniformBox
-from .cone import UniformCone
-from .cosine import CosineHemisphere
-from .discrete import Discrete
-from .disk import UniformDisk
-from .estimate import Estimate, estimate, integrand_values
-from .estimators import estimate_antithetic, estimate_control_variate, estimate_mis, estimate_ratio
-from .gradients import expectation, expectation_values
-from .gradient_errors import estimate_grad, expectation_grad
-from .until import EstimateUntil, estimate_until
-from .exponential import Exponential, TruncatedExponential
-from .frame import Frame
-from .mixture import Mixture
-from .oriented import Oriented
-from .phong import PhongLobe
-from .piecewise import PiecewiseConstant1D, PiecewiseConstant2D
-from .power import Power
-from .rejection import Rejection, RejectionInfo
-from .sphere import UniformHemisphere, UniformSphere
-from .transformed import Transformed
-from .triangle import UniformTriangle
-from .vmf import VonMisesFisher
+from .estimators import (Estimate, EstimateUntil, estimate, estimate_antithetic, estimate_control_variate,
+                         estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation,
+                         expectation_grad, expectation_values, integrand_values)
+from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, Oriented, PhongLobe,
+                       PiecewiseConstant1D, PiecewiseConstant2D, Power, Rejection, RejectionInfo, Sampler,
+                       Transformed, TruncatedExponential, UniformBox, UniformCone, UniformDisk,
+                       UniformHemisphere, UniformSphere, UniformTriangle, VonMisesFisher)
 
 __version__ = "0.1.0"
 

@@ -1,4 +1,4 @@
-"""Layer 7, the scene: only what one shading point needs (design.md).
+"""Layer 7, the scene: only what one shading point needs (docs/design.md).
 
 BRDFs (`Lambertian`, `Phong`) work in the local shading frame (normal +z) and have `eval`,
 `sample` and `pdf`; lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `EnvironmentMap`) work in
@@ -12,7 +12,7 @@ from .environment import EnvironmentDirections, EnvironmentMap
 from .lambertian import Lambertian
 from .phong import Phong, reflect
 from .reference import reference_radiance
-from .shade import STRATEGIES, mis_weight, shade
+from .direct import STRATEGIES, mis_weight, shade
 from .sky import ConstantSky
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight, TriangleLightDirections

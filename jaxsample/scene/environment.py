@@ -7,10 +7,11 @@ from typing import ClassVar
 import jax.numpy as jnp
 import numpy as np
 
-from .._base import Sampler, pytree_attributes, pytree_dataclass
-from ..domains import Directions
-from ..numerics import azimuth_fraction, safe_div, spherical_direction
-from ..piecewise import PiecewiseConstant2D
+from ..samplers.base import Sampler
+from .._core.pytree import pytree_attributes, pytree_dataclass
+from ..checks.domains import Directions
+from .._core.numerics import azimuth_fraction, safe_div, spherical_direction
+from ..samplers.piecewise import PiecewiseConstant2D
 
 _TWO_PI_SQUARED = 2.0 * np.pi * np.pi
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._base import check_parameter, pytree_dataclass
-from ..cosine import CosineHemisphere
-from ..numerics import INV_PI
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
+from ..samplers.cosine import CosineHemisphere
+from .._core.numerics import INV_PI
 
 
 @pytree_dataclass

@@ -5,10 +5,11 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._base import check_parameter, pytree_dataclass
-from ..numerics import INV_2PI, safe_pow
-from ..oriented import Oriented
-from ..phong import PhongLobe
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
+from .._core.numerics import INV_2PI, safe_pow
+from ..samplers.oriented import Oriented
+from ..samplers.phong import PhongLobe
 
 
 def reflect(wo: jax.Array) -> jax.Array:

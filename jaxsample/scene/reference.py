@@ -21,9 +21,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..frame import Frame
+from ..samplers.frame import Frame
 from ..quadrature import gauss_legendre_nodes_weights
-from ..testing import to_float64
+from ..checks.sampler_checks import to_float64
 from .environment import EnvironmentMap, direction_from_uv
 from .sky import ConstantSky
 from .sphere_light import SphereLight

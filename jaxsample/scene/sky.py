@@ -5,9 +5,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._base import check_parameter, pytree_dataclass
-from ..numerics import INV_4PI
-from ..sphere import UniformSphere
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
+from .._core.numerics import INV_4PI
+from ..samplers.sphere import UniformSphere
 
 
 @pytree_dataclass

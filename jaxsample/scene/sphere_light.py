@@ -5,9 +5,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._base import check_parameter, pytree_dataclass
-from ..cone import UniformCone
-from ..oriented import Oriented
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
+from ..samplers.cone import UniformCone
+from ..samplers.oriented import Oriented
 
 
 @pytree_dataclass

@@ -7,10 +7,12 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from .._base import Sampler, check_parameter, concrete_value, pytree_dataclass
-from ..domains import Directions
-from ..numerics import safe_div
-from ..triangle import UniformTriangle
+from ..samplers.base import Sampler
+from .._core.params import check_parameter, concrete_value
+from .._core.pytree import pytree_dataclass
+from ..checks.domains import Directions
+from .._core.numerics import safe_div
+from ..samplers.triangle import UniformTriangle
 
 
 def _intersect(triangle: UniformTriangle, origin, direction):

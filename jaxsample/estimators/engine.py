@@ -1,0 +1,283 @@
+"""Layer 4: the streaming engine behind every estimator: ∫ f dμ ≈ (1/n) Σ f(x_i) / p(x_i), in constant memory.
+
+`run_stream` averages per-sample values over a counter-based uniform stream; `estimate(f, sampler,
+key, n)` (`plain.py`) draws x_i = sampler.warp(u_i) from a uniform source
+(`jaxsample.uniforms`), averages Y_i = f(x_i)/p(x_i) (0 where p = 0, in value and gradient) and
+returns an `Estimate` with the mean, its standard error and diagnostics.
+
+Streaming: the n samples are processed in chunks of `chunk_size` inside `lax.scan`, so memory does
+not grow with n. The point with global index i is the same whatever the chunk size, the device
+count or the jit/vmap context (counter-based sources), so the estimate changes only by float
+rounding between chunkings and shardings.
+
+Accumulation, and why it is careful: within a chunk the sums are taken in a tree of blocks of
+`_BLOCK` values (error ~ (log n) ε rather than n ε); across chunks the running sums are
+compensated (TwoSum: the rounding error of each addition is kept), and the sum of squared deviations M2 is
+merged by Chan, Golub & LeVeque's pairwise update M2 = M2_a + M2_b + δ² n_a n_b / n (Chan et al.
+1979). For a constant integrand every chunk sum is exact and so is the mean, for any n. With
+replicates (Sobol', stratified) the per-replicate sums are kept in double-float (hi + lo,
+`jaxsample.doublefloat`), and every mean is divided in double-float before it is rounded: the
+stderr is the spread of the replicate means, which for Sobol' points drops below a float32 ulp of
+the mean (it came out as 0 when the means were rounded first).
+
+Speed: the per-sample work (warp, density, f) is evaluated on one array per coordinate
+(`jaxsample.lanes`), so XLA fuses it into one loop however f is written (`x @ a`, `jnp.sum(x * a)`,
+components); the g points a generator call yields (two 2-d points per Philox block) are computed
+in that loop and stored once per chunk (`jaxsample.computed_once`), so the generator runs once
+per block.
+
+Standard error: with independent points (the "random" source) it is sqrt(s²/n), s² the sample
+variance of Y. With R > 1 replicates (stratified, Sobol'), points within a replicate are
+dependent; the stderr is then the standard deviation of the R replicate means over sqrt(R).
+
+Gradients (`mode`, Zeltner et al. 2021): "attached" differentiates through the sample and its
+density (pathwise); "detached" applies `stop_gradient` to the sample and its density *together*,
+so only f carries the derivative. Chunks are `jax.checkpoint`ed, so reverse mode recomputes a
+chunk instead of storing it: gradient memory does not grow with n either.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.params import default_float_dtype
+from .._core.pytree import pytree_dataclass
+from .._core import doublefloat
+from .._core.computed_once import computed_once
+from .._core.lanes import lane_map
+from .._core.numerics import safe_div, safe_sqrt
+from ..uniforms import Source, as_source, seed_from_key
+from .result import Estimate
+
+__all__ = ["run_stream", "tree_sum", "DEFAULT_CHUNK_SIZE"]
+
+DEFAULT_CHUNK_SIZE = 1 << 16
+_BLOCK = 256
+
+
+# ----------------------------------------------------------------------------------------------
+# Accumulation
+# ----------------------------------------------------------------------------------------------
+
+
+def tree_sum(values: jax.Array) -> jax.Array:
+    """Sum over axis 0 in a tree of blocks of `_BLOCK` (zero-padded): error ~ log_B(n) levels."""
+    while values.shape[0] > _BLOCK:
+        length = values.shape[0]
+        padded = -(-length // _BLOCK) * _BLOCK
+        if padded != length:
+            pad = [(0, padded - length)] + [(0, 0)] * (values.ndim - 1)
+            values = jnp.pad(values, pad)
+        values = values.reshape((padded // _BLOCK, _BLOCK) + values.shape[1:]).sum(axis=1)
+    return values.sum(axis=0)
+
+
+@pytree_dataclass
+class _Moments:
+    """Running statistics of a stream: per-replicate compensated sums, M2, max |Y|, Σ|Y|, count."""
+
+    sums: jax.Array          # (R, *out): Σ Y per replicate (high part)
+    compensation: jax.Array  # (R, *out): the low part lost by the additions (TwoSum)
+    m2: jax.Array            # (*out): Σ (Y - mean)²
+    max_abs: jax.Array
+    sum_abs: jax.Array
+    count: jax.Array         # float: exact for the chunk multiples we use
+
+
+def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape) -> _Moments:
+    """Statistics of one chunk given as g arrays of values (*lanes, *out) (see Source.lanes:
+    group q holds the points g b + q of the chunk, b the C-order index over the lanes).
+
+    With replicates R > 1, g divides R and the chunk's offset is a multiple of R.
+    """
+    out_shape = tuple(out_shape)
+    groups = [y.reshape((-1,) + out_shape) for y in groups]
+    first = groups[0]
+    g = len(groups)
+    count = first.shape[0] * g
+    if replicates > 1:
+        # Replicate means are compared with each other (their spread is the stderr), so they are
+        # summed in double-float: see jaxsample.doublefloat. Group q holds the points g b + q of
+        # a chunk whose offset is a multiple of R (and g divides R): replicates q, q + g, ...
+        width = replicates // g
+        parts = [doublefloat.sum_axis0(y.reshape((count // replicates, width) + out_shape)) for y in groups]
+        per_replicate, low = (jnp.stack([part[i] for part in parts], axis=1)
+                              .reshape((replicates,) + out_shape) for i in (0, 1))
+    else:
+        per_replicate = tree_sum(sum(groups))[None]
+        low = jnp.zeros_like(per_replicate)
+    chunk_mean = per_replicate.sum(axis=0) / count
+    m2 = tree_sum(sum((y - chunk_mean) * (y - chunk_mean) for y in groups))
+    max_abs = functools.reduce(jnp.maximum, [jnp.max(jnp.abs(y), axis=0) for y in groups])
+    return _Moments(
+        sums=per_replicate,
+        compensation=low,
+        m2=m2,
+        max_abs=max_abs,
+        sum_abs=tree_sum(sum(jnp.abs(y) for y in groups)),
+        count=jnp.asarray(count, first.dtype),
+    )
+
+
+def _merge(a: _Moments, b: _Moments) -> _Moments:
+    """Chan et al. (1979) pairwise merge of M2; compensated sums; a.count may be 0."""
+    count = a.count + b.count
+    mean_a = jnp.sum(a.sums + a.compensation, axis=0) / jnp.maximum(a.count, 1.0)
+    mean_b = jnp.sum(b.sums + b.compensation, axis=0) / b.count
+    delta = mean_b - mean_a
+    m2 = a.m2 + b.m2 + delta * delta * (a.count * b.count / count)
+    sums, lost = doublefloat.two_sum(a.sums, b.sums)
+    compensation = a.compensation + b.compensation + lost
+    return _Moments(sums, compensation, m2, jnp.maximum(a.max_abs, b.max_abs),
+                    a.sum_abs + b.sum_abs, count)
+
+
+def _empty_moments(replicates: int, out_shape, dtype) -> _Moments:
+    zeros = jnp.zeros((replicates,) + out_shape, dtype)
+    scalar = jnp.zeros(out_shape, dtype)
+    return _Moments(zeros, zeros, scalar, scalar, scalar, jnp.zeros((), dtype))
+
+
+def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
+    # Every mean is formed in double-float (sums and compensations as hi + lo), divided before
+    # it is rounded; with replicates the spread is taken from the hi + lo means, whose differences
+    # are far below a float32 ulp of the mean once Sobol' points converge.
+    replicate_hi, replicate_lo = doublefloat.divide_by_int((m.sums, m.compensation), n // replicates)
+    total = doublefloat.sum_axis0(replicate_hi, leaf=1)
+    mean_hi, mean_lo = doublefloat.divide_by_int(
+        (total[0], total[1] + jnp.sum(replicate_lo, axis=0)), replicates)
+    # A non-finite Y (f returned ±inf or NaN, or the sum overflowed) makes the compensation
+    # inf - inf = NaN; the plain sum of the high parts is then the IEEE verdict (±inf, or NaN
+    # for a NaN value or infinities of both signs), and the error bars are unbounded.
+    plain_total = jnp.sum(m.sums, axis=0)
+    finite = jnp.all(jnp.isfinite(m.sums), axis=0)
+    mean = jnp.where(finite, mean_hi + mean_lo, plain_total / n)
+    variance = m.m2 / max(n - 1, 1)
+    if replicates == 1:
+        stderr = safe_sqrt(variance / n)
+    else:
+        spread = (replicate_hi - mean_hi) + (replicate_lo - mean_lo)
+        stderr = safe_sqrt(jnp.sum(spread * spread, axis=0) / (replicates - 1) / replicates)
+    sum_squares = m.m2 + n * mean * mean
+    ess = jnp.where(finite, safe_div(m.sum_abs * m.sum_abs, sum_squares), 0.0)
+    variance = jnp.where(finite, variance, jnp.inf)
+    stderr = jnp.where(finite, stderr, jnp.inf)
+    return Estimate(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
+                    n=n, replicates=replicates)
+
+
+# ----------------------------------------------------------------------------------------------
+# The streaming engine: values_fn(u) -> Y, summed over [base, base + count) in chunks
+# ----------------------------------------------------------------------------------------------
+
+
+def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
+    """values_fn on the points whose coordinates are `lanes` (d arrays of one shape, the points
+    in C order); the result has that shape + values_fn's output shape.
+
+    `values_fn` is elementwise over the points, so values_fn(u[None])[0] is its per-point form;
+    `lanes.lane_map` evaluates that on one array per coordinate, which XLA fuses into one loop
+    whatever shape of program the integrand is (see `jaxsample.lanes` for why vmap is not).
+    """
+    point = lambda one: values_fn(one[None])[0]
+    return lane_map(point, lanes[0].shape)(tuple(lanes))
+
+
+def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,
+            chunk_size: int, out_shape, aligned: int) -> _Moments:
+    """Moments of values_fn over the points with global indices [base, base + count).
+
+    `aligned`: every chunk offset is a multiple of it (it lets the sources take fast paths)."""
+    replicates = source.replicates
+
+    def chunk(offset, size):
+        groups = source.lanes(seed, offset, size, dims, dtype, total=total, aligned=aligned)
+        # The g groups share each generator call: computed in one loop, stored once per chunk.
+        values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], offset)
+        return _chunk_moments(values, replicates, out_shape)
+
+    moments = _empty_moments(replicates, out_shape, dtype)
+    steps, tail = divmod(count, chunk_size)
+    if steps:
+        chunk_body = jax.checkpoint(lambda offset: chunk(offset, chunk_size))
+
+        def body(state, step):
+            offset = base + step * chunk_size
+            return _merge(state, chunk_body(offset)), None
+
+        moments, _ = jax.lax.scan(body, moments, jnp.arange(steps, dtype=jnp.uint32))
+    if tail:
+        moments = _merge(moments, chunk(base + steps * chunk_size, tail))
+    return moments
+
+
+def _check_n(owner: str, n, multiple: int) -> int:
+    if not isinstance(n, (int, np.integer)) or n < 2:
+        raise ValueError(f"{owner}: parameter 'n' must be a Python int >= 2; got {n!r}")
+    if n % multiple:
+        raise ValueError(f"{owner}: parameter 'n' must be a multiple of {multiple} "
+                         f"(replicates x devices); got {n}")
+    return int(n)
+
+
+def _check_chunk_size(owner: str, chunk_size, replicates: int) -> int:
+    if chunk_size is None:
+        chunk_size = DEFAULT_CHUNK_SIZE
+    step = math.lcm(4, replicates)
+    if not isinstance(chunk_size, (int, np.integer)) or chunk_size < step or chunk_size % step:
+        raise ValueError(f"{owner}: parameter 'chunk_size' must be a positive multiple of {step}; "
+                         f"got {chunk_size!r}")
+    return int(chunk_size)
+
+
+def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=None,
+               chunk_size=None, out_shape=(), dtype=None, owner="estimate") -> Estimate:
+    """The engine behind every estimator: the Estimate of values_fn(u) over n points.
+
+    `values_fn` maps a (count, dims) block of uniforms to (count, *out_shape) values; it must be
+    elementwise over the block (point i's value depends on u_i only).
+    """
+    source = as_source(uniforms)
+    replicates = source.replicates
+    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    devices = 1 if mesh is None else mesh.size
+    n = _check_n(owner, n, replicates * devices)
+    chunk_size = _check_chunk_size(owner, chunk_size, replicates)
+    seed = seed_from_key(key)
+
+    if mesh is None:
+        moments = _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape,
+                          chunk_size)
+        return _finish(moments, n, replicates)
+
+    per_device = n // devices
+    axes = tuple(mesh.axis_names)
+
+    def local(seed):
+        device = jax.lax.axis_index(axes)
+        base = device.astype(jnp.uint32) * jnp.uint32(per_device)
+        m = _stream(values_fn, source, seed, dims, dtype, base, per_device, n, chunk_size,
+                    out_shape, math.gcd(per_device, chunk_size))
+        # Combine devices: compensated sums are added, M2 merged about the global mean.
+        # The per-replicate sums are gathered and added in double-float (a psum would round them).
+        sums, low = doublefloat.sum_axis0(jax.lax.all_gather(m.sums, axes), leaf=1)
+        low = low + jnp.sum(jax.lax.all_gather(m.compensation, axes), axis=0)
+        local_mean = jnp.sum(m.sums + m.compensation, axis=0) / per_device
+        global_mean = jnp.sum(sums + low, axis=0) / n
+        shift = local_mean - global_mean
+        m2 = jax.lax.psum(m.m2 + per_device * shift * shift, axes)
+        # max |Y| is a diagnostic with no derivative (and pmax has no differentiation rule, so
+        # without the stop a gradient of a sharded estimate failed).
+        return _Moments(sums, low, m2, jax.lax.pmax(jax.lax.stop_gradient(m.max_abs), axes),
+                        jax.lax.psum(m.sum_abs, axes), jnp.asarray(n, dtype))
+
+    from jax.sharding import PartitionSpec
+
+    moments = jax.shard_map(local, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec(),
+                            check_vma=False)(seed)
+    return _finish(moments, n, replicates)

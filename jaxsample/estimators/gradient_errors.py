@@ -1,0 +1,125 @@
+"""Gradients with error bars: `estimate_grad` and `expectation_grad` (issue 15, part 1).
+
+`jax.grad` of an estimate returns a bare number. Its noise is the spread of the per-sample
+gradients whose mean it is: with Y_i(θ) the per-sample value (`integrand_values` for ∫ f dμ,
+`expectation_values` for E_{p_θ}[g]), the gradient of the estimate is (1/n) Σ_i ∇θ Y_i(θ), an
+average of n per-sample gradients, so it has a standard error like any Monte Carlo mean. These
+functions stream the per-sample gradients through the same engine as the value (constant memory,
+the same uniforms: sample i depends only on the key and i; under `jit` and `vmap`; `mesh=`
+shards them), and return an `Estimate` whose `mean`, `stderr`, `variance`, `max_abs` and `ess`
+have the structure of `params`. With independent points the stderr is sqrt(s²/n) per parameter;
+with Sobol' or stratified points it is the spread of the replicate means, as for values.
+
+`make(params)` returns `(f, sampler)` (or `(g, sampler)`) built from a pytree of float
+parameters, so that a parameter may live in the integrand, the sampler or both. The integrand
+must be scalar-valued (the gradient of a vector would be a Jacobian).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+from jax.flatten_util import ravel_pytree
+
+from .._core.params import check_choice
+from .engine import run_stream
+from .plain import broadcast_like, integrand_values
+from .result import Estimate
+from .gradients import _GRADIENTS, _detached_log_pdf, expectation, expectation_values, uniform_dims
+
+__all__ = ["estimate_grad", "expectation_grad"]
+
+
+def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0, **kw) -> Estimate:
+    """Stream ∇θ of point_value(f_or_g, sampler, u_row) over n points; Estimate shaped like params."""
+    flat, unravel = ravel_pytree(params)
+    if not jnp.issubdtype(flat.dtype, jnp.floating):
+        raise TypeError(f"{owner}: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
+    fn, sampler = make(params)
+    dims = sampler.uniform_dims + extra_dims
+    out = jax.eval_shape(lambda u: point_value(fn, sampler, u), jax.ShapeDtypeStruct((dims,), flat.dtype))
+    if out.shape != ():
+        raise ValueError(f"{owner}: the integrand must return a scalar (one value per sample); got shape "
+                         f"{out.shape}. For a vector-valued integrand, take one component per call.")
+
+    def values_fn(u):
+        def one(row):
+            def value(theta):
+                f, s = make(unravel(theta))
+                return point_value(f, s, row)
+            return jax.grad(value)(flat)
+        return jax.vmap(one)(u)
+
+    est = run_stream(values_fn, dims, key, n, out_shape=flat.shape, owner=owner, **kw)
+    return Estimate(mean=unravel(est.mean), stderr=unravel(est.stderr), variance=unravel(est.variance),
+                    max_abs=unravel(est.max_abs), ess=unravel(est.ess), n=est.n, replicates=est.replicates)
+
+
+def estimate_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: jax.Array, n: int, *,
+                  mode: str = "attached", uniforms="random", mesh=None, chunk_size: int | None = None,
+                  dtype=None) -> Estimate:
+    """∇θ of ∫ f dμ as estimated by `jaxsample.estimate(f, sampler, key, n, mode=mode)`, with its
+    standard error; `(f, sampler) = make(θ)`, θ = `params` (a pytree of floats).
+
+    The mean is the gradient that `jax.grad` of that estimate's mean gives (same samples, to float
+    rounding); `stderr` has the structure of `params`. `mode`, `uniforms`, `mesh`, `chunk_size`,
+    `dtype`: as in `estimate` (`mode` decides whether samples and densities move with θ).
+    """
+    check_choice("estimate_grad", "mode", mode, ("attached", "detached"))
+
+    def point_value(f, sampler, row):
+        return integrand_values(f, sampler, row[None], mode=mode)[0]
+
+    return _per_sample_gradients(make, params, key, n, point_value, "estimate_grad", uniforms=uniforms,
+                                 mesh=mesh, chunk_size=chunk_size, dtype=dtype)
+
+
+def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: jax.Array, n: int, *,
+                     gradient: str = "pathwise", baseline: Any = None, uniforms="random", mesh=None,
+                     chunk_size: int | None = None, dtype=None) -> Estimate:
+    """∇θ E_{p_θ}[g] by the chosen per-sample estimator, with its standard error; `(g, sampler) =
+    make(θ)`, θ = `params` (a pytree of floats).
+
+    `gradient`: "pathwise", "score" or "measure_valued" (PhongLobe's exponent; as in
+    `jaxsample.expectation`); `baseline`, score only: a constant for "score" (held constant). The leave-one-out baseline couples the samples (each one's baseline
+    is the mean of the others), so its gradient is not a mean of independent per-sample terms:
+    use `jax.grad` of `expectation(..., baseline="leave_one_out")` for its value (ValueError here).
+    """
+    check_choice("expectation_grad", "gradient", gradient, _GRADIENTS)
+    if baseline is not None and gradient != "score":
+        raise ValueError("expectation_grad: parameter 'baseline' applies to gradient='score' only")
+    common = dict(uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype)
+    if isinstance(baseline, str):
+        check_choice("expectation_grad", "baseline", baseline, ("leave_one_out",))
+        return _leave_one_out(make, params, key, n, common)
+
+    def point_value(g, sampler, row):
+        return expectation_values(g, sampler, row[None], gradient=gradient, baseline=baseline)[0]
+
+    extra = uniform_dims(make(params)[1], gradient) - make(params)[1].uniform_dims
+    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", extra_dims=extra, **common)
+
+
+def _leave_one_out(make, params, key, n, common) -> Estimate:
+    """The score function with the leave-one-out baseline, as a mean of per-sample terms.
+
+    `expectation`'s gradient is mean(∇g) + n/(n-1) (mean(g ∇log p) - ḡ mean(∇log p)), ḡ the mean
+    of g over all n samples, which is exactly the mean of h_i = ∇g_i + n/(n-1) (g_i - ḡ) ∇log p_i.
+    So a first pass over the samples gives ḡ, a second streams the h_i on the same samples. The
+    h_i share ḡ, so they are not quite independent: the stderr from their spread is the usual
+    large-n (delta-method) standard error, off by O(1/n).
+    """
+    g, sampler = make(params)
+    mean_g = jax.lax.stop_gradient(expectation(g, sampler, jax.random.clone(key), n, **common).mean)
+    scale = n / (n - 1.0)
+
+    def point_value(g, sampler, row):
+        x = jax.lax.stop_gradient(sampler.warp(row[None]))
+        gx = jax.vmap(g)(x)
+        log_p = _detached_log_pdf(sampler, x)
+        score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
+        return (gx + score * jax.lax.stop_gradient(scale * (gx - mean_g)))[0]
+
+    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", **common)

@@ -1,0 +1,177 @@
+"""Layer 5: gradients of expectations with respect to the parameters of the sampling distribution.
+
+Two different questions share the words "gradient of a Monte Carlo estimate" (Mohamed et al.
+2020; Zeltner et al. 2021), and this module keeps them apart:
+
+1. A fixed integral I = ∫ f dμ, estimated as the mean of f(x)/p_θ(x): θ only chooses where the
+   samples go, so dI/dθ = 0 unless f itself depends on θ. That is `jaxsample.estimate` with its
+   `mode`: "attached" differentiates f(T(u; θ))/p(T(u; θ); θ) through the warp T and the density
+   (unbiased, noisy); "detached" holds the sample and its density constant together, so only f
+   carries a derivative (every per-sample gradient of a θ-free f is exactly 0). Holding only one
+   of them constant is biased (docs/reference.md gives the bias for the Phong lobe), so the choice is
+   made in one place (`integrand_values`) and applied to sample, density and MIS weights at once.
+
+2. An expectation E_{p_θ}[g] = ∫ g p_θ dμ, whose value itself moves with θ. That is
+   `expectation(g, sampler, key, n, gradient=...)`:
+
+   - "pathwise" (reparameterisation): x = T(u; θ), and the derivative flows through the warp,
+     ∇θ E[g] = E[∇x g · ∂θ T]. Low variance; needs g differentiable and T continuous in θ
+     wherever the samples land (not true of a `Mixture`'s component choice or a rejection step:
+     there the pathwise derivative misses the jumps and is biased; use "score").
+   - "score" (likelihood ratio, REINFORCE): ∇θ E[g] = E[(g(x) - b) ∇θ log p_θ(x)] for a sample x
+     held constant, with a baseline b that does not depend on x (a constant, or the leave-one-out
+     mean of the other samples). Needs only log p differentiable in θ; g may be a black box.
+
+   - "measure_valued" (Mohamed et al. 2020, section 6), for the Phong lobe's exponent: the
+     derivative of the density in n is (1/m)(p_n - q_n), q_n the density of cos θ as the product of
+     two draws, so ∇n E[g] = (1/m)(E_{p_n}[g] - E_{q_n}[g]): g need not be differentiable and no
+     density is differentiated (`PhongLobe.measure_valued_pair`; unbiased, samples held constant).
+
+   All are written as *surrogates* whose value is the plain Monte Carlo mean of g and whose
+   derivative is the chosen estimator, so one `jax.grad` gives the gradient and the returned
+   `Estimate` still reports E[g] with its standard error. For the score function the per-sample
+   surrogate is g(x̄) + (log p(x̄) - sg(log p(x̄))) · sg(g(x̄) - b), x̄ = sg(T(u; θ)), where sg is
+   `stop_gradient`: the second term is exactly 0 in value.
+
+The returned stderr is the standard error of the *value*. For the gradient's own variance, take
+per-sample gradients: `jax.vmap(jax.grad(...))` over rows of u of `integrand_values` or
+`expectation_values` (below), whose mean is the gradient of the estimate.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+
+from .._core.params import check_choice, default_float_dtype
+from .engine import run_stream
+from .plain import broadcast_like, integrand_values, output_shape
+from .result import Estimate
+
+__all__ = ["expectation", "expectation_values", "integrand_values"]
+
+_GRADIENTS = ("pathwise", "score", "measure_valued")
+
+
+def _detached_log_pdf(sampler, x):
+    """log p_θ(x̄) at a constant sample, finite everywhere (0 where the density is 0).
+
+    A sample can land a rounding error outside the support (log p = -inf); there the score term
+    would be -inf - (-inf) = NaN, so such lanes contribute no score (their derivative is already 0).
+    """
+    log_p = sampler.log_pdf(x)
+    finite = jnp.isfinite(log_p)
+    return jnp.where(finite, jnp.where(finite, log_p, 0.0), 0.0)
+
+
+def uniform_dims(sampler, gradient: str) -> int:
+    """Uniforms per sample for `gradient`: the sampler's, one more for "measure_valued"."""
+    return sampler.uniform_dims + (1 if gradient == "measure_valued" else 0)
+
+
+def _measure_valued_values(g, sampler, u):
+    """Surrogate g(x̄) + (n - sg(n)) · sg(c (g(x̄) - g(x̄'))): its value is g(x̄), its derivative
+    in the exponent n the measure-valued estimator, and g's own parameters differentiate through
+    g(x̄) (samples x̄, x̄' held constant)."""
+    from ..samplers.phong import PhongLobe
+
+    if not isinstance(sampler, PhongLobe):
+        raise ValueError("expectation: gradient='measure_valued' is available for PhongLobe (its exponent); "
+                         f"got {type(sampler).__name__}, which has no measure-valued decomposition here: "
+                         "use 'pathwise' or 'score'")
+    x, x_product, c = sampler.measure_valued_pair(u)
+    x, x_product = jax.lax.stop_gradient((x, x_product))
+    gx, gx_product = jax.vmap(g)(x), jax.vmap(g)(x_product)
+    exponent = jnp.asarray(sampler.exponent, gx.dtype)
+    tangent = exponent - jax.lax.stop_gradient(exponent)
+    return gx + tangent * jax.lax.stop_gradient(jnp.asarray(c, gx.dtype) * (gx - gx_product))
+
+
+def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
+                       gradient: str = "pathwise", baseline: Any = None) -> jax.Array:
+    """Per-sample surrogate values for E_{p_θ}[g] from a (count, uniform_dims) block of uniforms.
+
+    The value of each row is g(x_i); its derivative is the chosen per-sample gradient estimator:
+    ∇(g ∘ T) for "pathwise", ∇g(x̄) + (g(x̄) - b) ∇ log p(x̄) for "score" with a constant
+    baseline b (`baseline`, default 0, broadcast against g's value and held constant). The
+    leave-one-out baseline couples samples, so it exists only in `expectation`.
+    """
+    check_choice("expectation", "gradient", gradient, _GRADIENTS)
+    if gradient != "score" and baseline is not None:
+        raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
+    if gradient == "pathwise":
+        return jax.vmap(g)(sampler.warp(u))
+    if gradient == "measure_valued":
+        return _measure_valued_values(g, sampler, u)
+    if isinstance(baseline, str):
+        raise ValueError("expectation_values: a string 'baseline' (leave_one_out) needs the whole "
+                         "sample; use expectation")
+    x = jax.lax.stop_gradient(sampler.warp(u))
+    gx = jax.vmap(g)(x)
+    log_p = _detached_log_pdf(sampler, x)
+    score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
+    centred = gx if baseline is None else gx - baseline
+    return gx + score * jax.lax.stop_gradient(centred)
+
+
+def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
+                gradient: str = "pathwise", baseline: Any = None, uniforms="random", mesh=None,
+                chunk_size: int | None = None, dtype=None) -> Estimate:
+    """E_{p_θ}[g] = ∫ g p_θ dμ as the mean of g(x_i), x_i ~ sampler, with a chosen gradient.
+
+    Args:
+      g: maps ONE sample (shape `sampler.event_shape`) to a value (any fixed shape); vmapped. It may
+        close over θ too: both estimators then add its explicit derivative.
+      sampler: any `jaxsample.Sampler`; its parameters are the θ that `jax.grad` sees.
+      key, n, uniforms, mesh, chunk_size, dtype: as in `jaxsample.estimate`.
+      gradient: "pathwise" (default; through the warp), "score" (through log p of a detached
+        sample) or "measure_valued" (PhongLobe only: the exponent's derivative as a scaled
+        difference of two densities, `PhongLobe.measure_valued_pair`; one more uniform per sample).
+        All have the value mean(g); see the module docstring for when each is unbiased.
+      baseline: score only. None (no baseline), a constant (array broadcastable to g's value;
+        held constant: a baseline that depends on θ is stopped) or "leave_one_out": sample i uses
+        the mean of the other n - 1 samples, b_i = (S - g_i)/(n - 1), independent of x_i, so the
+        gradient stays unbiased. Its gradient is n/(n-1) (mean(g ∇log p) - mean(g) mean(∇log p)),
+        computed in the same single streaming pass.
+
+    Returns: `Estimate` of E[g] (mean, stderr of the value; see the module docstring for the
+    gradient's variance). Under `jax.grad`, its `mean` differentiates to the chosen estimator.
+    """
+    check_choice("expectation", "gradient", gradient, _GRADIENTS)
+    leave_one_out = isinstance(baseline, str)
+    if leave_one_out:
+        check_choice("expectation", "baseline", baseline, ("leave_one_out",))
+        if gradient != "score":
+            raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
+    elif baseline is not None:
+        if gradient != "score":
+            raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
+        baseline = jax.lax.stop_gradient(jnp.asarray(baseline))
+    dims = uniform_dims(sampler, gradient)
+    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    out_shape = output_shape(g, sampler, dtype)
+    common = dict(uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype,
+                  owner="expectation")
+
+    if not leave_one_out:
+        def values_fn(u):
+            return expectation_values(g, sampler, u, gradient=gradient, baseline=baseline)
+
+        return run_stream(values_fn, dims, key, n, out_shape=out_shape, **common)
+
+    # Leave-one-out: stream the three means (g, Δ·sg(g), Δ), Δ = log p - sg(log p) (value 0), and
+    # combine; the value is mean(g) exactly, the gradient the leave-one-out estimator.
+    def stacked_fn(u):
+        x = jax.lax.stop_gradient(sampler.warp(u))
+        gx = jax.vmap(g)(x)
+        log_p = _detached_log_pdf(sampler, x)
+        score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
+        return jnp.stack([gx, score * jax.lax.stop_gradient(gx), score * jnp.ones_like(gx)], axis=1)
+
+    est = run_stream(stacked_fn, dims, key, n, out_shape=(3,) + out_shape, **common)
+    mean_g, mean_g_score, mean_score = est.mean[0], est.mean[1], est.mean[2]
+    correction = (n / (n - 1.0)) * (mean_g_score - jax.lax.stop_gradient(mean_g) * mean_score)
+    return Estimate(mean=mean_g + correction, stderr=est.stderr[0], variance=est.variance[0],
+                    max_abs=est.max_abs[0], ess=est.ess[0], n=est.n, replicates=est.replicates)

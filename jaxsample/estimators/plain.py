@@ -1,0 +1,94 @@
+"""Plain Monte Carlo: ∫ f dμ as the mean of Y = f(x)/p(x) over samples x of one sampler.
+
+The streaming, accumulation and standard error are the engine's (`engine.py`); `mode` is the
+gradient choice of Zeltner et al. 2021, applied to the sample and its density together.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+
+from .._core.numerics import safe_div
+from .._core.params import check_choice, default_float_dtype
+from .engine import run_stream
+from .result import Estimate
+
+__all__ = ["estimate", "integrand_values"]
+
+
+MODES = ("attached", "detached")
+
+
+def check_mode(owner: str, mode: str) -> None:
+    """ValueError unless `mode` is "attached" or "detached" (the gradient choice of every estimator)."""
+    check_choice(owner, "mode", mode, MODES)
+
+
+def _detach(mode: str, *arrays):
+    """`arrays` (a sample, its density, MIS densities) with their gradient stopped together when
+    mode is "detached": stopping some of them and not the others is biased."""
+    check_mode("estimate", mode)
+    if mode == "detached":
+        return jax.lax.stop_gradient(arrays)
+    return arrays
+
+
+def broadcast_like(per_sample, values):
+    """A per-sample array (count,) with trailing axes added to divide or scale `values` (count, *out)."""
+    return per_sample.reshape(per_sample.shape + (1,) * (values.ndim - per_sample.ndim))
+
+
+def output_shape(f, sampler, dtype) -> tuple[int, ...]:
+    """The shape of f's value at one sample of `sampler` (traced abstractly, nothing computed)."""
+    u = jax.ShapeDtypeStruct((sampler.uniform_dims,), dtype)
+    return tuple(jax.eval_shape(lambda u: f(sampler.warp(u)), u).shape)
+
+
+def integrand_values(f: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
+                     mode: str = "attached") -> jax.Array:
+    """The per-sample values Y_i = f(x_i)/p(x_i), x_i = sampler.warp(u_i), that `estimate` averages.
+
+    `u` is a (count, uniform_dims) block; the result is (count, *f's output shape), 0 where p = 0.
+    `mode` is applied to the sample and its density together (see `estimate`). Differentiating
+    this function per sample (e.g. `jax.vmap(jax.grad(...))` over rows of u) gives the per-sample
+    gradients whose mean is the gradient of `estimate`, and whose spread is its variance.
+    """
+    x, pdf = sampler.warp_with_pdf(u)
+    x, pdf = _detach(mode, x, pdf)
+    fx = jax.vmap(f)(x)
+    return safe_div(fx, broadcast_like(pdf, fx))
+
+
+def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
+             uniforms="random", mode: str = "attached", mesh=None, chunk_size: int | None = None,
+             dtype=None) -> Estimate:
+    """∫ f dμ as the mean of f(x)/p(x) over n samples of `sampler` (μ is the sampler's measure).
+
+    Args:
+      f: maps ONE sample (shape `sampler.event_shape`) to a value (any fixed shape); it is vmapped.
+      sampler: any `jaxsample.Sampler` (a pytree: its parameters may be traced).
+      key: a typed `jax.random.key`; consumed once (turned into the source's seed words).
+      n: number of samples, a Python int (a multiple of the source's replicates x devices).
+      uniforms: "random" (default, Philox4x32-10), "stratified", "sobol" or a `uniforms.Source`.
+      mode: "attached" (pathwise: sample and pdf move with the parameters) or "detached"
+        (sample and pdf are constants together; only f carries derivatives).
+      mesh: a `jax.sharding.Mesh`; the n samples are split evenly over all its devices, each
+        drawing its own index range of the same stream, and combined with `psum`.
+      chunk_size: samples per streamed chunk (default 2^16; a multiple of 4 and of replicates).
+      dtype: float dtype of the uniforms (default float32, float64 under jax_enable_x64).
+
+    Returns: `Estimate`. Y = f/p is 0 where p = 0, with finite gradients there.
+    """
+    check_mode("estimate", mode)
+    dims = sampler.uniform_dims
+    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    out_shape = output_shape(f, sampler, dtype)
+
+    def values_fn(u):
+        return integrand_values(f, sampler, u, mode=mode)
+
+    return run_stream(values_fn, dims, key, n, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
+                      out_shape=out_shape, dtype=dtype)

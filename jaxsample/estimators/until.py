@@ -1,0 +1,177 @@
+"""Estimates to a requested accuracy: `estimate_until` (issue 15, part 2).
+
+Users ask for "this integral to three digits", not "with 2^20 samples". `estimate_until` streams
+chunks of samples (the same counter-based points as `estimate`: sample i depends only on the key
+and i) inside a `lax.while_loop`, and stops as soon as the standard error is at most
+max(atol, rtol·|mean|), or when `max_n` samples are used. It runs under `jit` and `vmap` (each
+batch member stops on its own; under vmap the loop runs until all have stopped, the stopped ones
+unchanged). With Sobol' points the test is made only when each replicate holds a power of two of
+points, so every stopping point is a (0, m, s)-net of every replicate.
+
+Sequential stopping is a mild bias: the estimate is most likely to stop when its stderr happens
+to be small, so the interval mean ± 1.96 stderr covers the integral slightly less often than 95 %.
+`min_n` (default: 8 chunks) keeps that small; the coverage measured over many keys is in
+`tests/test_until.py` and the closing note of issue 15.
+
+Not differentiable: reverse mode cannot go through a while loop, and the number of samples is
+itself random. Under `jax.grad` it raises, naming the n to use: differentiate
+`jaxsample.estimate(..., n)` with the `n_used` this returned.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.doublefloat import _float64_available
+from .._core.numerics import safe_div, safe_sqrt
+from .._core.params import check_choice, default_float_dtype
+from .._core.pytree import pytree_dataclass
+from ..uniforms import Random, Sobol, as_source, seed_from_key
+from .engine import _chunk_moments, _empty_moments, _lane_values, _merge, _Moments
+from .plain import integrand_values
+from .result import normal_interval
+
+__all__ = ["EstimateUntil", "estimate_until"]
+
+
+@pytree_dataclass(static=("max_n", "replicates"))
+class EstimateUntil:
+    """The result of `estimate_until`: an estimate from a data-dependent number of samples.
+
+    `mean`, `stderr`, `variance`, `max_abs`, `ess` as in `Estimate`; `n_used` (an int32 array: it
+    is known only at run time) samples were used; `converged` says whether the tolerance was met
+    (False: `max_n` was reached first).
+    """
+
+    mean: jax.Array
+    stderr: jax.Array
+    variance: jax.Array
+    max_abs: jax.Array
+    ess: jax.Array
+    n_used: jax.Array
+    converged: jax.Array
+    max_n: int = 0
+    replicates: int = 1
+
+    def interval(self, level: float = 0.95):
+        """Normal-approximation interval mean ± z stderr (see the module docstring on coverage)."""
+        return normal_interval(self.mean, self.stderr, level)
+
+
+def _statistics(m: _Moments, count, replicates: int):
+    """mean, stderr, variance, ess of the moments of `count` points (count traced)."""
+    count = count.astype(m.m2.dtype)
+    if _float64_available() and m.sums.dtype == jnp.float32:
+        with jax.enable_x64(True):
+            sums = m.sums.astype(jnp.float64) + m.compensation.astype(jnp.float64)
+            per_replicate = sums / (count.astype(jnp.float64) / replicates)
+            mean64 = jnp.mean(per_replicate, axis=0)
+            spread = jnp.sum((per_replicate - mean64) ** 2, axis=0)
+            mean, spread = mean64.astype(jnp.float32), spread.astype(jnp.float32)
+    else:
+        per_replicate = (m.sums + m.compensation) / (count / replicates)
+        mean = jnp.mean(per_replicate, axis=0)
+        spread = jnp.sum((per_replicate - mean) ** 2, axis=0)
+    variance = m.m2 / jnp.maximum(count - 1.0, 1.0)
+    if replicates == 1:
+        stderr = safe_sqrt(variance / count)
+    else:
+        stderr = safe_sqrt(spread / (replicates - 1) / replicates)
+    ess = safe_div(m.sum_abs * m.sum_abs, m.m2 + count * mean * mean)
+    return mean, stderr, variance, ess
+
+
+def _refuse_gradients(closed_consts):
+    for c in closed_consts:
+        if type(c).__name__ in ("JVPTracer", "LinearizeTracer"):
+            raise TypeError("estimate_until: cannot be differentiated (the number of samples is chosen at "
+                            "run time, and reverse mode cannot go through a while loop). Run estimate_until "
+                            "outside jax.grad, then differentiate jaxsample.estimate(..., n) with the "
+                            "n_used it returned.")
+
+
+def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, *, max_n: int,
+                   rtol: float | None = None, atol: float | None = None, min_n: int | None = None,
+                   uniforms="random", mode: str = "attached", chunk_size: int | None = None,
+                   dtype=None) -> EstimateUntil:
+    """∫ f dμ (as `jaxsample.estimate`) with as many samples as it takes for
+    stderr <= max(atol, rtol·|mean|) (elementwise over f's value: every component must meet it),
+    at most `max_n`.
+
+    Args:
+      f, sampler, key, mode, dtype: as in `estimate`.
+      max_n: the most samples to use (a multiple of `chunk_size`).
+      rtol, atol: relative and absolute tolerances on the standard error (at least one, >= 0).
+      min_n: stop no earlier than this (default 8 chunks; a multiple of `chunk_size`).
+      uniforms: "random" (default) or "sobol" (the test is made at power-of-two points per
+        replicate); "stratified" needs the total count in advance, so it is refused.
+      chunk_size: samples per step of the loop (default min(2^16, max_n)).
+    """
+    check_choice("estimate_until", "mode", mode, ("attached", "detached"))
+    if rtol is None and atol is None:
+        raise ValueError("estimate_until: give 'rtol' or 'atol' (a tolerance on the standard error)")
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if value is not None and not (isinstance(value, (int, float)) and value >= 0 and math.isfinite(value)):
+            raise ValueError(f"estimate_until: parameter '{name}' must be a finite number >= 0; got {value!r}")
+    source = as_source(uniforms)
+    if not isinstance(source, (Random, Sobol)):
+        raise ValueError("estimate_until: parameter 'uniforms' must be 'random' or 'sobol' (stratified "
+                         "points need the total count in advance)")
+    replicates = source.replicates
+    if not isinstance(max_n, (int, np.integer)) or max_n < 2:
+        raise ValueError(f"estimate_until: parameter 'max_n' must be an int >= 2; got {max_n!r}")
+    chunk = int(chunk_size) if chunk_size is not None else min(1 << 16, int(max_n))
+    step = math.lcm(4, replicates)
+    if chunk < step or chunk % step or max_n % chunk:
+        raise ValueError(f"estimate_until: 'chunk_size' ({chunk}) must be a positive multiple of {step} "
+                         f"that divides 'max_n' ({max_n})")
+    min_n = 8 * chunk if min_n is None else int(min_n)
+    if min_n % chunk or min_n < chunk:
+        raise ValueError(f"estimate_until: parameter 'min_n' must be a positive multiple of chunk_size ({chunk}); got {min_n}")
+    min_n = min(min_n, int(max_n))
+    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dims = sampler.uniform_dims
+
+    def values_fn(u):
+        return integrand_values(f, sampler, u, mode=mode)
+
+    point = jax.make_jaxpr(lambda one: values_fn(one[None])[0])(jax.ShapeDtypeStruct((dims,), dtype))
+    _refuse_gradients(point.consts)
+    out_shape = tuple(point.out_avals[0].shape)
+    seed = seed_from_key(key)
+    rtol_, atol_ = float(rtol or 0.0), float(atol or 0.0)
+
+    def chunk_moments(offset):
+        groups = source.lanes(seed, offset, chunk, dims, dtype, total=None, aligned=chunk)
+        return _chunk_moments([_lane_values(values_fn, lanes) for lanes in groups], replicates, out_shape)
+
+    def at_net(count):
+        # Sobol': test only when every replicate holds a power of two of points.
+        if replicates == 1:
+            return jnp.bool_(True)
+        per = count // replicates
+        return (per & (per - 1)) == 0
+
+    def cond(state):
+        moments, count, done = state
+        return (~done) & (count < max_n)
+
+    def body(state):
+        moments, count, _ = state
+        moments = _merge(moments, chunk_moments(count.astype(jnp.uint32)))
+        count = count + chunk
+        mean, stderr, _, _ = _statistics(moments, count, replicates)
+        tolerance = jnp.maximum(atol_, rtol_ * jnp.abs(mean))
+        met = jnp.all(stderr <= tolerance) & (count >= min_n) & at_net(count)
+        return moments, count, met
+
+    init = (_empty_moments(replicates, out_shape, dtype), jnp.int32(0), jnp.bool_(False))
+    moments, count, converged = jax.lax.while_loop(cond, body, init)
+    mean, stderr, variance, ess = _statistics(moments, count, replicates)
+    return EstimateUntil(mean=mean, stderr=stderr, variance=variance, max_abs=moments.max_abs, ess=ess,
+                         n_used=count, converged=converged, max_n=int(max_n), replicates=replicates)

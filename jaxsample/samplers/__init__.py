@@ -1,0 +1,31 @@
+"""Layer 3: samplers — warps from [0, 1)^d onto a domain, each beside its density and inverse.
+
+`Sampler` (in `base`) is the public base class: a subclass is a pytree without registration. One
+file per family; each class's docstring states the measure its density is over.
+"""
+
+from .base import Sampler
+from .box import UniformBox
+from .cone import UniformCone
+from .cosine import CosineHemisphere
+from .discrete import Discrete
+from .disk import UniformDisk
+from .exponential import Exponential, TruncatedExponential
+from .frame import Frame
+from .mixture import Mixture
+from .oriented import Oriented
+from .phong import PhongLobe
+from .piecewise import PiecewiseConstant1D, PiecewiseConstant2D
+from .power import Power
+from .rejection import Rejection, RejectionInfo
+from .sphere import UniformHemisphere, UniformSphere
+from .transformed import Transformed
+from .triangle import UniformTriangle
+from .vmf import VonMisesFisher
+
+__all__ = [
+    "Sampler", "UniformSphere", "UniformHemisphere", "CosineHemisphere", "PhongLobe", "UniformCone",
+    "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
+    "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "Rejection",
+    "RejectionInfo", "Transformed", "Mixture",
+]

@@ -1,0 +1,57 @@
+"""Orthonormal frames built from one unit vector (Duff et al. 2017, "Building an Orthonormal Basis,
+Revisited", JCGT 6(1)).
+
+Duff et al. fix the singularity of Frisvad's 2012 basis at n = -z with a branchless sign: with
+s = copysign(1, n_z), a = -1 / (s + n_z) and b = n_x n_y a, the tangents are
+t = (1 + s n_x² a, s b, -s n_x) and b' = (b, s + n_y² a, -n_y). `copysign` (not `sign`) matters:
+sign(-0.0) is 0 and would divide by zero.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from .._core.params import concrete_value
+from .._core.pytree import pytree_dataclass
+
+import numpy as np
+
+
+@pytree_dataclass
+class Frame:
+    """A right-handed orthonormal frame (x, y, z), each a (..., 3) array; `z` is the normal."""
+
+    x: jax.Array
+    y: jax.Array
+    z: jax.Array
+
+    @classmethod
+    def from_normal(cls, normal: jax.Array) -> "Frame":
+        """Frame whose z axis is `normal` (normalised here; a zero or non-finite normal raises)."""
+        normal = jnp.asarray(normal)
+        v = concrete_value(normal)
+        if v is not None:
+            if v.shape[-1:] != (3,):
+                raise ValueError(f"Frame.from_normal: parameter 'normal' must have shape (..., 3); got {v.shape}")
+            norms = np.linalg.norm(v, axis=-1)
+            if not np.all(np.isfinite(norms)) or np.any(norms == 0):
+                raise ValueError("Frame.from_normal: parameter 'normal' must be finite and non-zero")
+        normal = normal / jnp.linalg.norm(normal, axis=-1, keepdims=True)
+        nx, ny, nz = normal[..., 0], normal[..., 1], normal[..., 2]
+        s = jnp.copysign(jnp.ones_like(nz), nz)
+        a = -1.0 / (s + nz)
+        b = nx * ny * a
+        tangent = jnp.stack([1.0 + s * nx * nx * a, s * b, -s * nx], axis=-1)
+        bitangent = jnp.stack([b, s + ny * ny * a, -ny], axis=-1)
+        return cls(tangent, bitangent, normal)
+
+    def to_world(self, v: jax.Array) -> jax.Array:
+        """Local coordinates (about +z) to world: v_x x + v_y y + v_z z."""
+        return v[..., 0:1] * self.x + v[..., 1:2] * self.y + v[..., 2:3] * self.z
+
+    def to_local(self, v: jax.Array) -> jax.Array:
+        """World vector to local coordinates: (v·x, v·y, v·z)."""
+        return jnp.stack(
+            [jnp.sum(v * self.x, -1), jnp.sum(v * self.y, -1), jnp.sum(v * self.z, -1)], axis=-1
+        )

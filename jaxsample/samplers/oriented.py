@@ -1,0 +1,64 @@
+"""Any directional sampler turned so that its +z axis points along a given normal."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from .base import Sampler, WrapsSampler
+from .._core.params import concrete_value
+from .._core.pytree import pytree_dataclass
+from .frame import Frame
+
+
+@pytree_dataclass
+class Oriented(WrapsSampler):
+    """`base` rotated by the Duff et al. frame of `normal`: x = F · base.warp(u).
+
+    A rotation preserves solid angle, so the density is the base density of the local direction,
+    pdf(x) = base.pdf(Fᵀx), and the inverse is base.inverse(Fᵀx). `normal` is normalised.
+
+    Precision: the rotation costs about one float ulp (6e-8 in float32) per component, absolute.
+    Lobes about +z keep sin θ to full relative precision; a rotated lobe narrower than ~1e-3 rad
+    does not, in float32 (its inverse loses ~1e-5 at n = 1000). Work in float64 or in the local
+    frame (the base sampler) when that matters.
+    """
+
+    base: Sampler
+    frame: Frame
+    event_shape: ClassVar = (3,)
+
+    def __init__(self, base: Sampler, normal=None, *, frame: Frame | None = None):
+        if frame is None:
+            if normal is None:
+                raise ValueError("Oriented: give 'normal' (a non-zero 3-vector)")
+            frame = Frame.from_normal(normal)
+        if getattr(base, "event_shape", None) != (3,):
+            raise ValueError("Oriented: parameter 'base' must be a directional sampler (event_shape (3,))")
+        object.__setattr__(self, "base", base)
+        object.__setattr__(self, "frame", frame)
+
+    @property
+    def normal(self):
+        return self.frame.z
+
+    def warp(self, u):
+        return self.frame.to_world(self.base.warp(u))
+
+    def warp_with_pdf(self, u):
+        local, p = self.base.warp_with_pdf(u)
+        return self.frame.to_world(local), p
+
+    def pdf(self, x):
+        return self.base.pdf(self.frame.to_local(x))
+
+    def log_pdf(self, x):
+        return self.base.log_pdf(self.frame.to_local(x))
+
+    def inverse(self, x):
+        return self.base.inverse(self.frame.to_local(x))
+
+    def domain(self):
+        import dataclasses
+        normal = concrete_value(self.frame.z)
+        base = self.base.domain()
+        return dataclasses.replace(base, axis=tuple(normal)) if normal is not None else base

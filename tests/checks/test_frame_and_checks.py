@@ -1,0 +1,125 @@
+"""The Duff et al. frame, `Oriented`, and the checks in `jaxsample.testing` catching wrong samplers."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxsample as js
+from jaxsample.checks import sampler_checks as testing
+
+DUFF_BAD_NORMALS = [
+    (0.00038527316, 0.00038460016, -0.99999988079),
+    (-0.00019813581, -0.00008946839, -0.99999988079),
+]
+
+
+def orthonormality_error(frame):
+    x, y, z = frame.x, frame.y, frame.z
+    terms = [(jnp.linalg.norm(v, axis=-1) - 1) ** 2 for v in (x, y, z)]
+    terms += [jnp.sum(a * b, -1) ** 2 for a, b in ((x, y), (y, z), (z, x))]
+    return sum(terms) / 6
+
+
+@pytest.mark.parametrize("normal", DUFF_BAD_NORMALS + [(0, 0, 1), (0, 0, -1), (1, 0, 0), (0, -1, 0)])
+def test_frame_is_orthonormal_and_right_handed_even_near_minus_z(normal):
+    frame = js.Frame.from_normal(jnp.array(normal, jnp.float32))
+    assert float(orthonormality_error(frame)) < 1e-10
+    np.testing.assert_allclose(jnp.cross(frame.x, frame.y), frame.z, atol=1e-6)
+
+
+def test_frame_axis_normals_have_exact_zeros_in_the_axis_component():
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            n = jnp.zeros(3).at[axis].set(sign)
+            frame = js.Frame.from_normal(n)
+            assert float(frame.x[axis]) == 0.0 and float(frame.y[axis]) == 0.0
+
+
+def test_frame_on_random_normals_and_round_trip():
+    normals = jax.random.normal(jax.random.key(0), (1000, 3))
+    frame = js.Frame.from_normal(normals)
+    assert float(jnp.max(orthonormality_error(frame))) < 1e-10
+    v = jax.random.normal(jax.random.key(1), (1000, 3))
+    np.testing.assert_allclose(frame.to_world(frame.to_local(v)), v, atol=1e-5)
+    np.testing.assert_allclose(frame.to_local(frame.z), jnp.tile(jnp.array([0.0, 0, 1]), (1000, 1)), atol=1e-6)
+
+
+def test_oriented_keeps_the_density_and_inverts_through_the_frame():
+    base = js.PhongLobe(8.0)
+    normal = jnp.array([0.48, -0.6, 0.64])
+    oriented = js.Oriented(base, normal)
+    u = jax.random.uniform(jax.random.key(2), (256, 2))
+    local = base.warp(u)
+    world = oriented.warp(u)
+    np.testing.assert_allclose(oriented.pdf(world), base.pdf(local), rtol=1e-4)
+    np.testing.assert_allclose(jnp.sum(world * oriented.normal, -1), local[:, 2], atol=1e-6)
+    assert float(jnp.max(testing.inverse_error(oriented, u))) < 1e-5
+
+
+def test_gradients_flow_through_the_frame_to_the_normal():
+    u = jnp.array([0.3, 0.7])
+
+    def mean_z(theta):
+        normal = jnp.array([jnp.sin(theta), 0.0, jnp.cos(theta)])
+        return js.Oriented(js.CosineHemisphere(), normal).warp(u)[2]
+
+    g = jax.grad(mean_z)(0.4)
+    step = 1e-3
+    fd = (mean_z(0.4 + step) - mean_z(0.4 - step)) / (2 * step)
+    np.testing.assert_allclose(g, fd, rtol=1e-2)
+
+
+class _MisnormalizedPhong(js.PhongLobe):
+    def pdf(self, x):
+        return 1.01 * super().pdf(x)
+
+
+class _WrongInversePhong(js.PhongLobe):
+    def inverse(self, x):
+        u = super().inverse(x)
+        return u.at[..., 0].set(u[..., 0] ** 1.01)
+
+
+def test_normalization_detects_a_one_percent_error():
+    assert abs(testing.normalization(_MisnormalizedPhong(jnp.float32(30.0))) - 1.01) < 1e-6
+
+
+def test_jacobian_check_detects_a_density_that_disagrees_with_its_warp():
+    u = jnp.full((4, 2), 0.3)
+    assert float(jnp.min(testing.jacobian_error(_MisnormalizedPhong(jnp.float32(30.0)), u))) > 5e-3
+    assert float(jnp.max(testing.jacobian_error(js.PhongLobe(jnp.float32(30.0)), u))) < 1e-4
+
+
+def test_inverse_check_detects_a_wrong_inverse():
+    u = jnp.full((4, 2), 0.3)
+    assert float(jnp.min(testing.inverse_error(_WrongInversePhong(jnp.float32(3.0)), u))) > 1e-3
+
+
+def test_chi_square_rejects_a_misnormalized_density_and_samples_outside_the_support():
+    # A 1 % scale error adds about N·0.01² to the statistic: at 10^6 samples that is 1 sd above
+    # the threshold (rejected for 3 keys of 6), at 4·10^6 it is 7 sd (p ≈ 1e-50 for every key
+    # tried), so the rejection is a property of the check, not of the key.
+    result = testing.chi2_test(_MisnormalizedPhong(jnp.float32(30.0)), jax.random.key(3), n_samples=4_000_000)
+    assert not result.passed and result.p_value < 1e-20, result
+
+    class Leaky(js.UniformHemisphere):
+        # Mirrors 1 % of samples below the horizon, where the density is 0.
+        def warp(self, u):
+            x = super().warp(u)
+            return jnp.where((u[..., 1:2] < 0.01), x * jnp.array([1.0, 1.0, -1.0]), x)
+
+    # Deterministic in effect: ~1000 of the 10^5 samples land outside (none would pass unseen).
+    leaky = testing.chi2_test(Leaky(), jax.random.key(4), n_samples=100_000)
+    assert not leaky.passed and leaky.n_outside > 0
+
+
+def test_chi_square_p_values_are_uniform_under_the_null():
+    # The statistic's law: over 40 independent runs on a correct sampler, p-values spread over
+    # (0, 1). Kolmogorov–Smirnov against U(0, 1) at level 1e-4 (critical D = 0.3 for n = 40).
+    keys = jax.random.split(jax.random.key(5), 40)
+    p = np.sort([testing.chi2_test(js.CosineHemisphere(), k, n_samples=20_000, n_cells=32,
+                                   n_pilot=4096).p_value for k in keys])
+    grid = np.arange(1, 41) / 40
+    d = max(np.max(grid - p), np.max(p - (grid - 1 / 40)))
+    assert d < 0.3, p
