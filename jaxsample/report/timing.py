@@ -6,6 +6,7 @@ import statistics
 import time
 
 import jax
+import numpy as np
 
 
 def median_seconds(run, key, repeats: int = 3) -> float:
@@ -24,12 +25,18 @@ def median_seconds(run, key, repeats: int = 3) -> float:
 def interleaved_medians(fns: dict, keys, repeats: int = 7) -> dict:
     """Median seconds of each `fns[name](k)`, the functions called in turn `repeats` times (after
     one warm-up call each) so that a burst of load on a shared machine hits them alike; `keys` is
-    an iterator of fresh keys, one per call."""
+    an iterator of fresh keys, one per call. Each round calls them in a new (seeded) random
+    order, so that no function always follows the same one: a JAX program called right after the
+    NumPy baseline ran up to 1.3x slower here, and a fixed order gave that to one row."""
     for fn in fns.values():
         jax.block_until_ready(fn(next(keys)))
     times = {name: [] for name in fns}
+    names = list(fns)
+    order = np.random.default_rng(0)
     for _ in range(repeats):
-        for name, fn in fns.items():
+        for index in order.permutation(len(names)):
+            name = names[index]
+            fn = fns[name]
             start = time.perf_counter()
             jax.block_until_ready(fn(next(keys)))
             times[name].append(time.perf_counter() - start)
