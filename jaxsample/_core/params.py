@@ -40,11 +40,14 @@ def check_parameter(
     low_open: bool = False,
     high_open: bool = False,
 ) -> None:
-    """Raise `ValueError` naming `owner.name` and its valid range if a concrete value is outside it.
+    """Raise `ValueError` naming `owner.name` and its valid range if a concrete value is outside it,
+    and `TypeError` if it is not a number (a string, None, a dict).
 
-    NaN is always rejected. Traced values are not checked: under `jit` a sampler cannot raise, and
-    an out-of-range traced parameter gives the documented garbage-in behaviour of each sampler.
+    NaN is always rejected. Traced values cannot be checked (under `jit` nothing can raise): the
+    sampler's `_parameters_valid` states the same range with `in_range`, and an out-of-range traced
+    parameter makes every value and gradient NaN (`jaxsample.samplers.base`, "Invalid parameters").
     """
+    check_number(owner, name, value)
     v = concrete_value(value)
     if v is None:
         return
@@ -63,6 +66,39 @@ def check_parameter(
     if np.any(bad):
         shown = v if v.ndim == 0 else v[bad].ravel()[:3]
         raise ValueError(f"{owner}: parameter '{name}' must be in {interval}; got {shown}")
+
+
+def check_number(owner: str, name: str, value: Any) -> None:
+    """Raise `TypeError` unless `value` is a number, an array of numbers or a tracer."""
+    if isinstance(value, jax.core.Tracer):
+        return
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{owner}: parameter '{name}' must be a number or an array of numbers; got the bool {value!r}")
+    if isinstance(value, (int, float, np.number, jax.Array)):
+        return
+    try:
+        kind = np.asarray(value).dtype.kind
+    except Exception:
+        kind = "O"
+    if kind not in "iuf":
+        raise TypeError(f"{owner}: parameter '{name}' must be a number or an array of numbers; "
+                        f"got {type(value).__name__} {value!r}")
+
+
+def in_range(value: Any, low: float = -np.inf, high: float = np.inf, *, low_open: bool = False,
+             high_open: bool = False) -> jax.Array:
+    """Whether every entry of `value` lies in the interval (NaN is never in range): the traced
+    counterpart of `check_parameter`, with the same arguments. A JAX boolean for a traced value,
+    a NumPy one for a concrete value."""
+    if np.isfinite(low):  # widened to its float32 rounding, as in `check_parameter`
+        low = min(low, float(np.float32(low)))
+    if np.isfinite(high):
+        high = max(high, float(np.float32(high)))
+    concrete = concrete_value(value)
+    xp, v = (np, concrete) if concrete is not None else (jnp, jnp.asarray(value))  # NumPy: no dispatch
+    above = (v > low) if low_open else (v >= low)
+    below = (v < high) if high_open else (v <= high)
+    return xp.all(above & below)
 
 
 def check_choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None:

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
+from ..samplers.base import check_unbatched
 from .._core.params import check_choice
 from .engine import run_stream
 from .plain import broadcast_like, integrand_values
@@ -38,6 +39,7 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"{owner}: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
     fn, sampler = make(params)
+    check_unbatched(sampler, owner)
     dims = sampler.uniform_dims + extra_dims
     out = jax.eval_shape(lambda u: point_value(fn, sampler, u), jax.ShapeDtypeStruct((dims,), flat.dtype))
     if out.shape != ():

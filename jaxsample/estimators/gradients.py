@@ -47,7 +47,7 @@ import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
-from .plain import broadcast_like, integrand_values, output_shape
+from .plain import broadcast_like, integrand_values, output_shape, over_batch
 from .result import Estimate
 
 __all__ = ["expectation", "expectation_values", "integrand_values"]
@@ -138,8 +138,14 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
 
     Returns: `Estimate` of E[g] (mean, stderr of the value; see the module docstring for the
     gradient's variance). Under `jax.grad`, its `mean` differentiates to the chosen estimator.
+    For a sampler with a `batch_shape`, a batched `Estimate` (as `jaxsample.estimate`).
     """
     check_choice("expectation", "gradient", gradient, _GRADIENTS)
+    if sampler.batch_shape:
+        return over_batch(lambda member, k: expectation(g, member, k, n, gradient=gradient, baseline=baseline,
+                                                        uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
+                                                        dtype=dtype),
+                          sampler, key, "expectation")
     leave_one_out = isinstance(baseline, str)
     if leave_one_out:
         check_choice("expectation", "baseline", baseline, ("leave_one_out",))

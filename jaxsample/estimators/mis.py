@@ -12,6 +12,8 @@ import numpy as np
 
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
+from ..samplers.base import check_unbatched
+from ..uniforms import as_key
 from .engine import run_stream
 from .plain import _detach, broadcast_like, check_mode, output_shape
 from .result import Estimate
@@ -35,6 +37,24 @@ def heuristic_weights(densities: Sequence[jax.Array], exponent: float) -> list[j
     return [safe_div(p, total) for p in powered]
 
 
+def _check_samplers_agree(samplers) -> None:
+    """MIS adds densities of one point under every technique: they must be densities of one event
+    shape over one measure (a solid-angle density plus an area density is a number without
+    meaning), each of one distribution."""
+    for s in samplers:
+        check_unbatched(s, "estimate_mis")
+    described = ", ".join(f"{type(s).__name__} (event_shape {tuple(s.event_shape)}, measure {s.measure!r})"
+                          for s in samplers)
+    if len({tuple(s.event_shape) for s in samplers}) != 1:
+        raise ValueError(f"estimate_mis: parameter 'samplers' must share one event shape; got {described}")
+    measures = {s.measure for s in samplers}
+    if None in measures:
+        raise ValueError(f"estimate_mis: every sampler must state the measure its density is over; got {described} "
+                         "(give Transformed a measure=...)")
+    if len(measures) != 1:
+        raise ValueError(f"estimate_mis: parameter 'samplers' must have densities over one measure; got {described}")
+
+
 def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequence[int], *,
                  heuristic: str = "balance", beta: float = 2.0, uniforms="random",
                  mode: str = "attached", chunk_size: int | None = None, dtype=None, mesh=None) -> Estimate:
@@ -54,11 +74,12 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     counts = [int(c) for c in counts]
     if len(samplers) != len(counts) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
+    _check_samplers_agree(samplers)
     exponent = 1 if heuristic == "balance" else beta
     if isinstance(exponent, (int, float, np.integer, np.floating)) and float(exponent).is_integer():
         exponent = int(exponent)  # q ** 2 is a multiplication; q ** 2.0 would be lax.pow (exp, log)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
-    keys = jax.random.split(key, len(samplers))
+    keys = jax.random.split(as_key(key, "estimate_mis"), len(samplers))
     parts = []
     for i, (sampler, count) in enumerate(zip(samplers, counts)):
 

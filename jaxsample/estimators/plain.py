@@ -22,6 +22,27 @@ __all__ = ["estimate", "integrand_values"]
 MODES = ("attached", "detached")
 
 
+def over_batch(one: Callable, sampler, key, owner: str):
+    """`one(sampler, key)`, mapped over a batched sampler's members.
+
+    For a sampler with a non-empty `batch_shape`, `one` runs on each member under `jax.vmap` over
+    the flattened batch, every member with the same `key` (common random numbers: the differences
+    between members carry less noise than the members do), and the result's leaves get the
+    leading `batch_shape`: exactly `jax.vmap` over the batch, as a TFP user expects.
+    """
+    from ..samplers.base import flat_batch
+    from ..uniforms import as_key
+
+    key = as_key(key, owner)
+    batch = sampler.batch_shape
+    if not batch:
+        return one(sampler, key)
+    if not sampler.batchable:
+        raise ValueError(f"{owner}: {type(sampler).__name__} cannot be batched; got batch_shape {batch}")
+    result = jax.vmap(lambda member: one(member, key))(flat_batch(sampler, batch))
+    return jax.tree_util.tree_map(lambda leaf: leaf.reshape(batch + leaf.shape[1:]), result)
+
+
 def check_mode(owner: str, mode: str) -> None:
     """ValueError unless `mode` is "attached" or "detached" (the gradient choice of every estimator)."""
     check_choice(owner, "mode", mode, MODES)
@@ -80,9 +101,15 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
       chunk_size: samples per streamed chunk (default 2^16; a multiple of 4 and of replicates).
       dtype: float dtype of the uniforms (default float32, float64 under jax_enable_x64).
 
-    Returns: `Estimate`. Y = f/p is 0 where p = 0, with finite gradients there.
+    Returns: `Estimate`. Y = f/p is 0 where p = 0, with finite gradients there. For a sampler
+      with a `batch_shape`, an `Estimate` whose fields have that leading shape: `jax.vmap` over
+      the members, all drawing with the same key.
     """
     check_mode("estimate", mode)
+    if sampler.batch_shape:
+        return over_batch(lambda member, k: estimate(f, member, k, n, uniforms=uniforms, mode=mode, mesh=mesh,
+                                                     chunk_size=chunk_size, dtype=dtype),
+                          sampler, key, "estimate")
     dims = sampler.uniform_dims
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     out_shape = output_shape(f, sampler, dtype)

@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..samplers.base import check_unbatched
 from .._core.doublefloat import _float64_available
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
@@ -83,6 +84,8 @@ def _statistics(m: _Moments, count, replicates: int):
     else:
         stderr = safe_sqrt(spread / (replicates - 1) / replicates)
     ess = safe_div(m.sum_abs * m.sum_abs, m.m2 + count * mean * mean)
+    # A NaN or infinite mean (an invalid traced parameter, a non-finite value) has no error bar.
+    stderr = jnp.where(jnp.isfinite(mean), stderr, jnp.inf)
     return mean, stderr, variance, ess
 
 
@@ -135,6 +138,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
         raise ValueError(f"estimate_until: parameter 'min_n' must be a positive multiple of chunk_size ({chunk}); got {min_n}")
     min_n = min(min_n, int(max_n))
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    check_unbatched(sampler, "estimate_until")
     dims = sampler.uniform_dims
 
     def values_fn(u):

@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..samplers.base import check_unbatched
 from .._core.params import default_float_dtype
 from .engine import run_stream
 from .plain import _detach, broadcast_like, check_mode, output_shape
@@ -29,6 +30,7 @@ __all__ = ["estimate_ratio", "estimate_antithetic", "estimate_control_variate"]
 def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, owner):
     """Estimate of the vector (Y, Z, Y + Z), Y = f/p, Z = h/p: the diagonal variances give Cov."""
     check_mode(owner, mode)
+    check_unbatched(sampler, owner)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
 
     def values_fn(u):
@@ -75,6 +77,7 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
     The stderr comes from the pair means (independent); `n` must be even.
     """
     check_mode("estimate_antithetic", mode)
+    check_unbatched(sampler, "estimate_antithetic")
     if not isinstance(n, int) or n % 2:
         raise ValueError(f"estimate_antithetic: parameter 'n' must be an even int; got {n!r}")
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)

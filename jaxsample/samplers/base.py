@@ -10,6 +10,7 @@ bijection, its inverse.
 from __future__ import annotations
 
 import functools
+import operator
 from typing import ClassVar
 
 import jax
@@ -17,25 +18,67 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.params import default_float_dtype
-from .._core.pytree import Pytree
+from .._core.pytree import Pytree, tree_fields
 from .._core.numerics import safe_log
 
 
 class Sampler(Pytree):
     """Base class: `sample`, `sample_with_pdf`, `log_pdf` and `warp_with_pdf` from `warp` and `pdf`.
 
-    Subclasses define `uniform_dims`, `event_shape`, `warp(u)`, `pdf(x)` and `domain()`; they may
-    override `warp_with_pdf` when the density is more accurate from u than from x (sharp lobes),
-    and `inverse` where the warp is a bijection. Every subclass is a pytree with no registration
-    (`jaxsample._core.pytree.Pytree`): attributes holding arrays or floats are its leaves (traceable
-    under `jit`, `vmap` and `grad`), the others (strings, ints) static metadata.
+    Subclasses define `uniform_dims`, `event_shape`, `measure`, `warp(u)`, `pdf(x)` and `domain()`;
+    they may override `warp_with_pdf` when the density is more accurate from u than from x (sharp
+    lobes), and `inverse` where the warp is a bijection. Every subclass is a pytree with no
+    registration (`jaxsample._core.pytree.Pytree`): attributes holding arrays or floats are its
+    leaves (traceable under `jit`, `vmap` and `grad`), the others (strings, ints) static metadata.
+
+    Batches (as in TFP and distrax). A class declares the rank of each parameter that may carry a
+    batch (`parameter_ranks`: 0 for a scalar such as an exponent, 1 for a vector such as a vertex);
+    a declared parameter with leading dimensions beyond its rank makes a batch of distributions,
+    and `batch_shape` is the broadcast of those leading shapes. Undeclared array attributes (tables,
+    a user's own arrays) are taken whole, never as a batch; nested samplers declare their own. The point
+    methods `warp`, `warp_with_pdf`, `pdf`, `log_pdf` and `inverse`, written by a subclass for one
+    distribution, are batched here for every subclass: they take points of shape
+    `sample_shape + batch_shape + core` (or broadcastable to it) and evaluate each batch member at its
+    own points (`jax.vmap` over the flattened batch). `sample(key, sample_shape)` returns
+    `sample_shape + batch_shape + event_shape`. A sampler whose tables cannot be batched sets
+    `batchable = False` and refuses batched parameters.
+
+    Invalid parameters (the one rule, docs/design.md "Invalid input"): a concrete parameter outside
+    its range raises `ValueError` naming it and the range at construction (a non-number raises
+    `TypeError`); a traced one cannot raise, so `_parameters_valid()` (each class states its
+    ranges) poisons the parameters with NaN before any point method runs: values, densities and
+    gradients are then NaN, and estimators report a NaN mean with an infinite stderr, never a
+    finite number.
     """
 
     uniform_dims: ClassVar[int]
     event_shape: ClassVar[tuple[int, ...]] = ()
+    # The measure the density is over ("solid angle", "area", "length", "counting", ...): MIS
+    # refuses to combine samplers whose densities are over different measures.
+    measure: ClassVar[str | None] = None
     # Uniform coordinates that are periodic (an azimuth 2πu): u and u ± 1 give the same point, so
     # round-trip checks compare them modulo 1.
     periodic_dims: ClassVar[tuple[int, ...]] = ()
+    # Rank of each batchable parameter's own shape; leading dimensions beyond it are a batch.
+    # Attributes not named here are taken whole (never batched).
+    parameter_ranks: ClassVar[dict[str, int]] = {}
+    batchable: ClassVar[bool] = True
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        for name in _POINT_METHODS:
+            method = cls.__dict__.get(name)
+            if callable(method) and not getattr(method, "_batched", False):
+                setattr(cls, name, _batched(method, name))
+
+    def _parameters_valid(self):
+        """A boolean (scalar) array: whether the parameters are in range; None if always valid."""
+        return None
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        """The broadcast of the parameters' leading (batch) dimensions; () for one distribution."""
+        return _batch_shape(self)
 
     def warp(self, u: jax.Array) -> jax.Array:
         raise NotImplementedError
@@ -55,6 +98,14 @@ class Sampler(Pytree):
     def inverse(self, x: jax.Array) -> jax.Array:
         raise NotImplementedError(f"{type(self).__name__} has no inverse: its warp is not a bijection")
 
+    def prob(self, x: jax.Array) -> jax.Array:
+        """The density at `x` (the name TFP, distrax and NumPyro use): the same function as `pdf`."""
+        return self.pdf(x)
+
+    def log_prob(self, x: jax.Array) -> jax.Array:
+        """The log density at `x` (TFP's, distrax's and NumPyro's name): the same function as `log_pdf`."""
+        return self.log_pdf(x)
+
     @property
     def has_inverse(self) -> bool:
         return type(self).inverse is not Sampler.inverse
@@ -63,27 +114,169 @@ class Sampler(Pytree):
         """The `jaxsample.domains` object the checks integrate over and bin on."""
         raise NotImplementedError
 
-    def sample(self, key: jax.Array, shape=(), dtype=None) -> jax.Array:
-        """Samples of shape `shape + event_shape` from uniforms drawn with `key`.
+    def sample(self, key=None, sample_shape=(), dtype=None, *, seed=None, shape=None) -> jax.Array:
+        """Samples of shape `sample_shape + batch_shape + event_shape` drawn with `key`.
 
-        The i-th sample (in C order over `shape`) is `warp` of the i-th point of the estimators'
+        `key` (or `seed=`, the keyword TFP and distrax use) is a JAX key: `jax.random.key(s)` or a
+        legacy `jax.random.PRNGKey(s)`, which draws the same stream (`uniforms.as_key`).
+        `shape=` is the former name of `sample_shape`. The i-th sample (in C order over
+        `sample_shape + batch_shape`) is `warp` of the i-th point of the estimators'
         counter-based Philox stream (`jaxsample.uniforms`, several times faster than threefry on
-        CPU, strictly inside (0, 1)), computed in one compiled loop (see `_draw`).
+        CPU, strictly inside (0, 1)): batch members draw independent points. One distribution
+        is computed in one compiled loop (see `_draw`).
         """
-        return _draw(self, key, _as_shape(shape), _as_dtype(dtype), "warp")
+        return draw(self, _one_key(key, seed, "sample"), _one_shape(sample_shape, shape), dtype, "warp")
 
-    def sample_with_pdf(self, key: jax.Array, shape=(), dtype=None) -> tuple[jax.Array, jax.Array]:
+    def sample_with_pdf(self, key=None, sample_shape=(), dtype=None, *, seed=None, shape=None):
         """(samples, their densities); the density is the one `pdf` states, computed alongside."""
-        return _draw(self, key, _as_shape(shape), _as_dtype(dtype), "warp_with_pdf")
+        return draw(self, _one_key(key, seed, "sample_with_pdf"), _one_shape(sample_shape, shape), dtype,
+                    "warp_with_pdf")
+
+
+_POINT_METHODS = ("warp", "warp_with_pdf", "pdf", "log_pdf", "inverse")
+
+
+def _one_key(key, seed, owner):
+    if key is not None and seed is not None:
+        raise TypeError(f"{owner}: give the key once, as 'key' or as its alias 'seed'")
+    if key is None and seed is None:
+        raise TypeError(f"{owner}: missing the key: pass jax.random.key(...) as 'key' (or 'seed')")
+    return seed if key is None else key
+
+
+def _one_shape(sample_shape, shape):
+    return sample_shape if shape is None else shape
+
+
+def _leaf_ranks(obj) -> list[int | None]:
+    """The own rank of each leaf of `obj`, in `jax.tree_util.tree_leaves` order (None: the whole
+    leaf is its own shape, as for every attribute a class does not declare in `parameter_ranks`)."""
+    names, _ = tree_fields(obj)
+    declared = getattr(type(obj), "parameter_ranks", {})
+    ranks = []
+    for name in names:
+        for item in jax.tree_util.tree_leaves(getattr(obj, name), is_leaf=lambda v: isinstance(v, Pytree)):
+            ranks.extend(_leaf_ranks(item) if isinstance(item, Pytree) else [declared.get(name)])
+    return ranks
+
+
+def _batch_shape(sampler) -> tuple[int, ...]:
+    shapes = []
+    for leaf, rank in zip(jax.tree_util.tree_leaves(sampler), _leaf_ranks(sampler)):
+        shape = np.shape(leaf)
+        if rank is not None:
+            shapes.append(tuple(shape[: max(len(shape) - rank, 0)]))
+    return tuple(jnp.broadcast_shapes(*shapes)) if shapes else ()
+
+
+def flat_batch(sampler, batch: tuple[int, ...]):
+    """`sampler` with every parameter broadcast to `batch` and the batch flattened to one leading
+    axis: a pytree that `jax.vmap(..., in_axes=0)` splits into its batch members."""
+    size = int(np.prod(batch, dtype=np.int64))
+    leaves, treedef = jax.tree_util.tree_flatten(sampler)
+    flat = []
+    for leaf, rank in zip(leaves, _leaf_ranks(sampler)):
+        leaf = jnp.asarray(leaf)
+        own = leaf.shape if rank is None else leaf.shape[leaf.ndim - rank:] if rank else ()
+        flat.append(jnp.broadcast_to(leaf, batch + own).reshape((size,) + own))
+    return jax.tree_util.tree_unflatten(treedef, flat)
+
+
+def check_unbatched(sampler, owner: str) -> None:
+    """Raise for a batched sampler where an entry point takes one distribution."""
+    if sampler.batch_shape:
+        raise ValueError(f"{owner}: takes one distribution; the sampler has batch_shape {sampler.batch_shape} "
+                         "(jax.vmap over the batch, or use `estimate`, which maps over it)")
+
+
+def _poisoned(sampler):
+    """`sampler` with every float parameter made NaN where `_parameters_valid()` is False.
+
+    Each parameter becomes θ·(1 + e) with e = 0 (valid: θ exactly, derivative 1) or NaN (invalid):
+    the values are NaN, and so is the derivative of every entry of θ, also of the entries a
+    gather never reads (their cotangent 0 times NaN), so no gradient comes out finite."""
+    if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(sampler)):
+        return sampler  # concrete parameters were checked at construction (ValueError)
+    valid = sampler._parameters_valid()
+    if valid is None:
+        return sampler
+    if not isinstance(valid, jax.core.Tracer) and bool(np.all(np.asarray(valid))):
+        return sampler
+    poison = jnp.where(jnp.all(valid), 0.0, jnp.nan)
+
+    def add(leaf):
+        leaf_dtype = jnp.result_type(leaf)
+        if jnp.issubdtype(leaf_dtype, jnp.inexact):
+            return leaf * (1 + poison.astype(leaf_dtype))
+        return leaf
+
+    return jax.tree_util.tree_map(add, sampler)
+
+
+def _batched(method, name: str):
+    takes_u = name in ("warp", "warp_with_pdf")
+
+    @functools.wraps(method)
+    def point_method(self, point, *args, **kwargs):
+        batch = self.batch_shape
+        if not batch:
+            return method(_poisoned(self), point, *args, **kwargs)
+        if not self.batchable:
+            raise ValueError(f"{type(self).__name__}: cannot be batched (its tables are built per distribution); "
+                             f"got parameters with batch_shape {batch}; build one per member")
+        core = (self.uniform_dims,) if takes_u else tuple(self.event_shape)
+        point = jnp.asarray(point)
+        full = tuple(jnp.broadcast_shapes(point.shape, batch + core))
+        sample = full[: len(full) - len(batch) - len(core)]
+        count = int(np.prod(sample, dtype=np.int64))
+        size = int(np.prod(batch, dtype=np.int64))
+        points = jnp.broadcast_to(point, full).reshape((count, size) + core)
+        one = lambda member, p: point_method(member, p, *args, **kwargs)
+        out = jax.vmap(one, in_axes=(0, 1), out_axes=1)(flat_batch(self, batch), points)
+        return jax.tree_util.tree_map(lambda o: o.reshape(sample + batch + o.shape[2:]), out)
+
+    point_method._batched = True
+    return point_method
+
+
+for _name in _POINT_METHODS:
+    setattr(Sampler, _name, _batched(Sampler.__dict__[_name], _name))
 
 
 def draw(sampler: Sampler, key, shape, dtype, method: str):
-    """`sampler.<method>` applied to the sampling stream's first prod(shape) points (see `_draw`)."""
-    return _draw(sampler, key, _as_shape(shape), _as_dtype(dtype), method)
+    """`sampler.<method>` applied to the sampling stream's first points, shaped
+    `shape + batch_shape + event` (see `_draw`; a batch goes through `_draw_batch`)."""
+    from ..uniforms import as_key
+
+    key = as_key(key, "sample")
+    shape, dtype = _as_shape(shape), _as_dtype(dtype)
+    if sampler.batch_shape:
+        return _draw_batch(sampler, key, shape, dtype, method)
+    return _draw(sampler, key, shape, dtype, method)
 
 
 def _as_shape(shape) -> tuple[int, ...]:
-    return (int(shape),) if isinstance(shape, (int, np.integer)) else tuple(int(s) for s in shape)
+    if isinstance(shape, (int, np.integer)) and not isinstance(shape, bool):
+        shape = (shape,)
+    try:
+        shape = tuple(operator.index(s) for s in shape)
+    except TypeError:
+        raise TypeError(f"sample: parameter 'sample_shape' must be an int or a tuple of ints; got {shape!r}") from None
+    if any(s < 0 for s in shape):
+        raise ValueError(f"sample: parameter 'sample_shape' must have entries >= 0; got {shape}")
+    return shape
+
+
+@functools.partial(jax.jit, static_argnums=(2, 3, 4))
+def _draw_batch(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
+    """A batch of distributions: the stream's first prod(shape + batch) points, shaped
+    `shape + batch + (d,)`, through the batched point method (one vmap over the flat batch)."""
+    from ..uniforms import Random, seed_from_key
+
+    full = shape + sampler.batch_shape
+    count = int(np.prod(full, dtype=np.int64))
+    u = Random().block(seed_from_key(key), jnp.uint32(0), count, sampler.uniform_dims, dtype)
+    return getattr(sampler, method)(u.reshape(full + (sampler.uniform_dims,)))
 
 
 def _as_dtype(dtype):
@@ -109,7 +302,7 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
     from .._core.lanes import lane_map
     from ..uniforms import Random, seed_from_key
 
-    seed = key if (isinstance(key, jax.Array) and key.dtype == jnp.uint32) else seed_from_key(key)
+    seed = seed_from_key(key, "sample")
     count = int(np.prod(shape, dtype=np.int64))
     dims = sampler.uniform_dims
     g = 4 // dims if dims <= 4 else 1
@@ -161,6 +354,10 @@ class WrapsSampler(Sampler):
     @property
     def periodic_dims(self):
         return self.base.periodic_dims
+
+    @property
+    def measure(self):
+        return self.base.measure
 
     @property
     def has_inverse(self):

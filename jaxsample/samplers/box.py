@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import concrete_value
+from .._core.params import check_number, concrete_value
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Box
 
@@ -27,14 +27,17 @@ class UniformBox(Sampler):
 
     low: jax.Array
     high: jax.Array
+    parameter_ranks = {"low": 1, "high": 1}
 
     def __post_init__(self):
+        check_number("UniformBox", "low", self.low)
+        check_number("UniformBox", "high", self.high)
         low, high = concrete_value(self.low), concrete_value(self.high)
         if low is None or high is None:
             return
-        if low.ndim != 1 or low.shape != high.shape or low.size == 0:
-            raise ValueError(f"UniformBox: parameters 'low' and 'high' must have equal shapes (d,); "
-                             f"got {low.shape} and {high.shape}")
+        if low.ndim < 1 or low.shape[-1:] != high.shape[-1:] or low.size == 0:
+            raise ValueError(f"UniformBox: parameters 'low' and 'high' must have shapes (..., d) with one d "
+                             f"(leading dimensions are a batch); got {low.shape} and {high.shape}")
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high)) and np.all(low < high)):
             raise ValueError("UniformBox: parameters 'low' and 'high' must be finite with low < high")
 
@@ -45,6 +48,16 @@ class UniformBox(Sampler):
     @property
     def event_shape(self):
         return (self.uniform_dims,)
+
+    @property
+    def measure(self) -> str:
+        """Lebesgue measure on R^d: length, area, volume, or "d-volume"."""
+        d = self.uniform_dims
+        return {1: "length", 2: "area", 3: "volume"}.get(d, f"{d}-volume")
+
+    def _parameters_valid(self):
+        low, high = jnp.asarray(self.low), jnp.asarray(self.high)
+        return jnp.all(jnp.isfinite(low) & jnp.isfinite(high) & (low < high))
 
     def _volume(self):
         return jnp.prod(jnp.asarray(self.high) - jnp.asarray(self.low), axis=-1)

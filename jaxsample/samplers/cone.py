@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_parameter, concrete_value
+from .._core.params import check_parameter, concrete_value, in_range
 from .._core.pytree import pytree_attributes
 from ..checks.domains import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
@@ -37,6 +37,8 @@ class UniformCone(Sampler):
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
     periodic_dims: ClassVar = (1,)
+    measure: ClassVar = "solid angle"
+    parameter_ranks: ClassVar = {"one_minus_cos_theta_max": 0}
 
     def __init__(self, cos_theta_max=None, *, one_minus_cos_theta_max=None):
         if (cos_theta_max is None) == (one_minus_cos_theta_max is None):
@@ -48,6 +50,9 @@ class UniformCone(Sampler):
             check_parameter("UniformCone", "one_minus_cos_theta_max", one_minus_cos_theta_max, 0.0, 2.0,
                             low_open=True)
         self.one_minus_cos_theta_max = one_minus_cos_theta_max
+
+    def _parameters_valid(self):
+        return in_range(self.one_minus_cos_theta_max, 0.0, 2.0, low_open=True)
 
     @classmethod
     def from_angle(cls, theta_max):

@@ -37,6 +37,7 @@ class CosineHemisphere(Sampler):
     method: str = "malley"
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
+    measure: ClassVar = "solid angle"
 
     @property
     def periodic_dims(self):

@@ -7,6 +7,7 @@ the uniform (the *remainder*) for reuse.
 
 from __future__ import annotations
 
+import functools
 from typing import ClassVar
 
 import jax
@@ -14,31 +15,50 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_choice, concrete_value, default_float_dtype
+from .._core.params import check_choice, check_number, concrete_value, default_float_dtype
 from .._core.pytree import pytree_attributes
 from ..checks.domains import DiscreteSet
 from .._core.numerics import one_minus_epsilon
 
 
 def as_array(x):
-    """Lists and tuples of numbers as float64 NumPy arrays (so they count as concrete); else `x`."""
-    return np.asarray(x, dtype=np.float64) if isinstance(x, (list, tuple)) else x
+    """Lists and tuples of numbers as float64 NumPy arrays (so they count as concrete); else `x`
+    (a list that is not of numbers stays a list, for `check_number` to refuse)."""
+    if not isinstance(x, (list, tuple)):
+        return x
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        return x
+
+
+_NO_BATCH = ("one table per sampler: batches of tables are not supported (build one sampler per "
+             "row, or jax.vmap a function that builds it)")
 
 
 def check_weights(owner: str, name: str, weights, ndim: int = 1) -> None:
     """Raise ValueError unless concrete `weights` has `ndim` dimensions, is finite, >= 0, sum > 0."""
+    check_number(owner, name, weights)
     w = concrete_value(weights)
     if w is None:
         if hasattr(weights, "shape") and jnp.ndim(weights) != ndim:
-            raise ValueError(f"{owner}: parameter '{name}' must have {ndim} dimension(s); got shape {jnp.shape(weights)}")
+            raise ValueError(f"{owner}: parameter '{name}' must have {ndim} dimension(s); got shape "
+                             f"{jnp.shape(weights)}; " + _NO_BATCH)
         return
     if w.ndim != ndim or w.size == 0:
         raise ValueError(f"{owner}: parameter '{name}' must be a non-empty array with {ndim} dimension(s); "
-                         f"got shape {w.shape}")
+                         f"got shape {w.shape}" + ("; " + _NO_BATCH if w.ndim > ndim else ""))
     if not np.all(np.isfinite(w)) or np.any(w < 0):
         raise ValueError(f"{owner}: parameter '{name}' must have every entry in [0, inf) (finite, no NaN)")
     if not np.sum(w) > 0:
         raise ValueError(f"{owner}: parameter '{name}' must have a positive sum (not all zero)")
+
+
+def valid_tables(*pmfs) -> jax.Array:
+    """Whether normalised tables are valid: every entry finite and >= 0, and some entry positive
+    (weights that were all zero, negative somewhere, or not finite fail)."""
+    ok = [jnp.all(jnp.isfinite(p) & (p >= 0)) & jnp.any(p > 0) for p in pmfs]
+    return functools.reduce(jnp.logical_and, ok)
 
 
 def _cummax(x, xp, reverse=False):
@@ -202,11 +222,20 @@ class Discrete(Sampler):
     Precision: a float32 uniform has 23 random bits, so with K near 10^6 each outcome's probability
     is resolved only to about K·2^-23 (~12 %) of itself; pass float64 uniforms when per-outcome
     accuracy matters for such tables. Concrete weights must be finite, >= 0 and not all zero
-    (ValueError otherwise); traced weights are not checked (all-zero traced weights give NaN pmf).
+    (ValueError otherwise); such traced weights make every value NaN (`Sampler`, "Invalid
+    parameters"). One table per sampler: weights with a batch dimension raise ValueError.
     """
 
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
+    measure: ClassVar = "counting"
+    parameter_ranks: ClassVar = {"pmf": 1, "cdf": 1, "alias_probability": 1, "alias": 1}
+    batchable: ClassVar = False
+
+    def _parameters_valid(self):
+        # Traced weights are checked here, as `check_weights` checks concrete ones: a normalised
+        # table with a NaN entry (all-zero, negative or non-finite weights) is invalid.
+        return valid_tables(self.pmf)
 
     def __init__(self, weights, method: str = "cdf"):
         check_choice("Discrete", "method", method, ("cdf", "alias"))

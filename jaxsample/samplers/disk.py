@@ -43,6 +43,7 @@ class UniformDisk(Sampler):
     method: str = "concentric"
     tries: int = 8
     event_shape: ClassVar = (2,)
+    measure: ClassVar = "area"
 
     def __post_init__(self):
         check_choice("UniformDisk", "method", self.method, ("concentric", "polar", "rejection"))

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_parameter, concrete_value
+from .._core.params import check_parameter, concrete_value, in_range
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Interval
 
@@ -48,15 +48,21 @@ class Exponential(Sampler):
     The density from u is σ(1 - u), exactly; the inverse is u = -expm1(-σt).
 
     Parameter: `rate` σ > 0 and finite (checked when concrete); tested from 1e-6 to 1e6 in float32
-    and float64. A traced σ <= 0 gives meaningless (but not NaN at u = 0) values.
+    and float64. A traced σ <= 0 makes every value and gradient NaN (`Sampler`, "Invalid parameters").
     """
 
     rate: jax.Array
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
 
+    measure: ClassVar = "length"
+    parameter_ranks: ClassVar = {"rate": 0}
+
     def __post_init__(self):
         check_parameter("Exponential", "rate", self.rate, 0.0, np.inf, low_open=True, high_open=True)
+
+    def _parameters_valid(self):
+        return in_range(self.rate, 0.0, np.inf, low_open=True, high_open=True)
 
     def warp(self, u):
         return -jnp.log1p(-u[..., 0]) / self.rate
@@ -94,7 +100,8 @@ class TruncatedExponential(Sampler):
     inverse u = (t/T) g(σt)/g(σT).
 
     Parameters: `rate` σ > 0 and `t_max` T > 0, finite (checked when concrete); σ tested from
-    1e-6 to 1e6. σ = 0 itself (traced) gives the uniform density on [0, T].
+    1e-6 to 1e6. The formulas tend to the uniform density on [0, T] as σ -> 0; σ = 0 itself is
+    outside the range (traced, it makes every value NaN, as any invalid parameter does).
     """
 
     rate: jax.Array
@@ -102,9 +109,16 @@ class TruncatedExponential(Sampler):
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
 
+    measure: ClassVar = "length"
+    parameter_ranks: ClassVar = {"rate": 0, "t_max": 0}
+
     def __post_init__(self):
         check_parameter("TruncatedExponential", "rate", self.rate, 0.0, np.inf, low_open=True, high_open=True)
         check_parameter("TruncatedExponential", "t_max", self.t_max, 0.0, np.inf, low_open=True, high_open=True)
+
+    def _parameters_valid(self):
+        return (in_range(self.rate, 0.0, np.inf, low_open=True, high_open=True)
+                & in_range(self.t_max, 0.0, np.inf, low_open=True, high_open=True))
 
     def _mass_ratio(self):
         return _expm1_ratio(self.rate * self.t_max)

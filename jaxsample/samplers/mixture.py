@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -10,7 +11,7 @@ import numpy as np
 
 from .base import Sampler
 from .._core.pytree import pytree_dataclass
-from .discrete import as_array, cdf_from_weights, check_weights, select_with_remainder
+from .discrete import as_array, cdf_from_weights, check_weights, select_with_remainder, valid_tables
 
 
 def _merged_domain(domains):
@@ -43,6 +44,7 @@ class Mixture(Sampler):
 
     components: tuple
     weights: jax.Array
+    parameter_ranks: ClassVar = {"weights": 1}
 
     def __post_init__(self):
         object.__setattr__(self, "weights", as_array(self.weights))
@@ -53,6 +55,9 @@ class Mixture(Sampler):
             raise ValueError("Mixture: parameter 'components' must hold at least one sampler")
         if len({tuple(c.event_shape) for c in self.components}) != 1:
             raise ValueError("Mixture: parameter 'components' must share one event shape")
+        if len({c.measure for c in self.components}) != 1:
+            raise ValueError("Mixture: parameter 'components' must have densities over one measure; got "
+                             + ", ".join(f"{type(c).__name__}: {c.measure}" for c in self.components))
         check_weights("Mixture", "weights", self.weights)
         if hasattr(self.weights, "shape") and jnp.shape(self.weights)[-1] != len(self.components):
             raise ValueError(f"Mixture: parameter 'weights' must have one entry per component "
@@ -65,6 +70,13 @@ class Mixture(Sampler):
     @property
     def event_shape(self):
         return self.components[0].event_shape
+
+    @property
+    def measure(self):
+        return self.components[0].measure
+
+    def _parameters_valid(self):
+        return valid_tables(self._pmf())
 
     def _pmf(self):
         w = jnp.asarray(self.weights)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import jax.numpy as jnp
+
 from .base import Sampler, WrapsSampler
 from .._core.params import concrete_value
 from .._core.pytree import pytree_dataclass
@@ -26,6 +28,12 @@ class Oriented(WrapsSampler):
     base: Sampler
     frame: Frame
     event_shape: ClassVar = (3,)
+    parameter_ranks: ClassVar = {"frame": 1}
+
+    def _parameters_valid(self):
+        # A zero-length or non-finite normal (traced) gives a NaN frame.
+        f = self.frame
+        return jnp.all(jnp.isfinite(f.x)) & jnp.all(jnp.isfinite(f.y)) & jnp.all(jnp.isfinite(f.z))
 
     def __init__(self, base: Sampler, normal=None, *, frame: Frame | None = None):
         if frame is None:

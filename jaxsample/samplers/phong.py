@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 
 from .base import Sampler
-from .._core.params import check_parameter
+from .._core.params import check_parameter, in_range
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
@@ -35,8 +35,14 @@ class PhongLobe(Sampler):
     event_shape: ClassVar = (3,)
     periodic_dims: ClassVar = (1,)
 
+    measure: ClassVar = "solid angle"
+    parameter_ranks: ClassVar = {"exponent": 0}
+
     def __post_init__(self):
         check_parameter("PhongLobe", "exponent", self.exponent, 0.0, 1e7)
+
+    def _parameters_valid(self):
+        return in_range(self.exponent, 0.0, 1e7)
 
     def _log_cos_from_u(self, u0):
         return jnp.log1p(-u0) / (self.exponent + 1.0)

@@ -16,7 +16,7 @@ import numpy as np
 from .base import Sampler
 from .._core.params import concrete_value
 from .._core.pytree import pytree_attributes
-from .discrete import (as_array, check_weights, normalized_tables, select_rows_with_remainder,
+from .discrete import (as_array, check_weights, normalized_tables, select_rows_with_remainder, valid_tables,
     select_with_remainder)
 from ..checks.domains import Box, Interval
 
@@ -63,6 +63,14 @@ class PiecewiseConstant1D(Sampler):
 
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
+    measure: ClassVar = "length"
+    parameter_ranks: ClassVar = {"pmf": 1, "cdf": 1}
+    batchable: ClassVar = False
+
+    def _parameters_valid(self):
+        # Traced weights are checked here, as `check_weights` checks concrete ones: a normalised
+        # table with a NaN entry (all-zero, negative or non-finite weights) is invalid.
+        return valid_tables(self.pmf)
 
     def __init__(self, values):
         values = as_array(values)
@@ -109,6 +117,14 @@ class PiecewiseConstant2D(Sampler):
 
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (2,)
+    measure: ClassVar = "area"
+    parameter_ranks: ClassVar = {"marginal_pmf": 1, "marginal_cdf": 1, "conditional_pmf": 2, "conditional_cdf": 2}
+    batchable: ClassVar = False
+
+    def _parameters_valid(self):
+        # Traced weights are checked here, as `check_weights` checks concrete ones: a normalised
+        # table with a NaN entry (all-zero, negative or non-finite weights) is invalid.
+        return valid_tables(self.marginal_pmf, self.conditional_pmf)
 
     def __init__(self, values):
         values = as_array(values)

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_choice, check_parameter, concrete_value
+from .._core.params import check_choice, check_parameter, concrete_value, in_range
 from ..checks.domains import Interval
 from .._core.numerics import safe_log, safe_pow
 
@@ -30,6 +30,8 @@ class Power(Sampler):
     """
 
     event_shape = ()
+    measure = "length"
+    parameter_ranks = {"exponent": 0}
 
     def __init__(self, exponent, method: str = "inversion"):
         check_choice("Power", "method", method, ("inversion", "max"))
@@ -56,6 +58,9 @@ class Power(Sampler):
     @property
     def has_inverse(self) -> bool:
         return self.method == "inversion"
+
+    def _parameters_valid(self):
+        return in_range(self.exponent, 0.0, 1e6) if self.method == "inversion" else None
 
     def _log_x(self, u0):
         return jnp.log1p(-u0) / (self.exponent + 1.0)

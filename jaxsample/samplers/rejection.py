@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler, draw
-from .._core.params import check_parameter
+from .._core.params import check_parameter, in_range
 from .._core.pytree import pytree_dataclass
 
 
@@ -76,9 +76,19 @@ class Rejection(Sampler):
         check_parameter("Rejection", "bound", self.bound, 1.0, np.inf, high_open=True)
         check_parameter("Rejection", "tries", self.tries, 1, 4096)
 
+    batchable: ClassVar = False
+    parameter_ranks: ClassVar = {"bound": 0}
+
     @property
     def event_shape(self):
         return self.proposal.event_shape
+
+    @property
+    def measure(self):
+        return self.proposal.measure
+
+    def _parameters_valid(self):
+        return in_range(self.bound, 1.0, np.inf, high_open=True)
 
     @property
     def _tail_dims(self) -> int:

@@ -33,6 +33,7 @@ class UniformSphere(Sampler):
     method: str = "inversion"
     tries: int = 16
     event_shape: ClassVar = (3,)
+    measure: ClassVar = "solid angle"
     periodic_dims: ClassVar = (1,)
 
     def __post_init__(self):
@@ -86,6 +87,7 @@ class UniformHemisphere(Sampler):
 
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
+    measure: ClassVar = "solid angle"
     periodic_dims: ClassVar = (1,)
 
     def warp(self, u):

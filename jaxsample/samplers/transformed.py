@@ -20,7 +20,7 @@ def _map_points(fn, x, event_ndim):
     return out.reshape(batch + out.shape[1:])
 
 
-@pytree_attributes(leaves=("base",), static=("forward", "backward", "support"))
+@pytree_attributes(leaves=("base",), static=("forward", "backward", "support", "output_measure"))
 class Transformed(WrapsSampler):
     """y = T(x) with x from `base`: p_y(y) = p_x(T⁻¹(y)) / |det J_T(T⁻¹(y))|.
 
@@ -35,15 +35,27 @@ class Transformed(WrapsSampler):
     functions, since a new function object recompiles. `domain` (optional, static) is the output
     domain for the checks. Where det J is 0 or not finite (T's singular points, a set of measure
     zero such as the centre of polar coordinates) the density is reported as 0.
+
+    `measure` (optional, static) names the output density's measure ("solid angle", "area", ...);
+    by default it is the base's when T keeps the dimension, unknown (None) when it maps onto a
+    surface. `estimate_mis` needs it known.
     """
 
-    def __init__(self, base: Sampler, forward: Callable, inverse: Callable, domain=None):
+    def __init__(self, base: Sampler, forward: Callable, inverse: Callable, domain=None, measure=None):
         if not isinstance(base, Sampler):
             raise ValueError("Transformed: parameter 'base' must be a Sampler")
         self.base = base
         self.forward = forward
         self.backward = inverse
         self.support = domain
+        self.output_measure = measure
+
+    @property
+    def measure(self):
+        if self.output_measure is not None:
+            return self.output_measure
+        same_dimension = math.prod(self.event_shape) == math.prod(self.base.event_shape)
+        return self.base.measure if same_dimension else None
 
     @property
     def event_shape(self):

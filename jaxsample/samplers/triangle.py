@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import concrete_value
+from .._core.params import check_number, concrete_value
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Triangle
 from .._core.numerics import safe_div, safe_sqrt
@@ -54,21 +54,34 @@ class UniformTriangle(Sampler):
     b: jax.Array
     c: jax.Array
     uniform_dims = 2
+    measure = "area"
+    parameter_ranks = {"a": 1, "b": 1, "c": 1}
+
+    def _parameters_valid(self):
+        vertices = jnp.stack(jnp.broadcast_arrays(*(jnp.asarray(v) for v in (self.a, self.b, self.c))))
+        return jnp.all(jnp.isfinite(vertices)) & (self._normal()[1] > 0)
 
     def __post_init__(self):
+        for name in ("a", "b", "c"):
+            check_number("UniformTriangle", name, getattr(self, name))
         values = [concrete_value(v) for v in (self.a, self.b, self.c)]
         if any(v is None for v in values):
             return
         a, b, c = values
-        if not (a.shape == b.shape == c.shape and a.shape in ((2,), (3,))):
-            raise ValueError(f"UniformTriangle: parameters 'a', 'b', 'c' must all have shape (2,) or (3,); "
-                             f"got {a.shape}, {b.shape}, {c.shape}")
+        if not (a.shape[-1:] == b.shape[-1:] == c.shape[-1:] and a.shape[-1:] in ((2,), (3,))):
+            raise ValueError(f"UniformTriangle: parameters 'a', 'b', 'c' must all have shape (2,) or (3,) "
+                             f"(leading dimensions are a batch); got {a.shape}, {b.shape}, {c.shape}")
         if not all(np.all(np.isfinite(v)) for v in values):
             raise ValueError("UniformTriangle: parameters 'a', 'b', 'c' must be finite")
+        a, b, c = np.broadcast_arrays(a, b, c)
         e1, e2 = b - a, c - a
-        twice_area = abs(e1[0] * e2[1] - e1[1] * e2[0]) if len(a) == 2 else np.linalg.norm(np.cross(e1, e2))
-        longest = max(np.sum(e1 * e1), np.sum(e2 * e2), np.sum((c - b) ** 2))
-        if not twice_area > _DEGENERATE_ULPS * np.finfo(np.float64).eps * longest:
+        if a.shape[-1] == 2:
+            twice_area = np.abs(e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0])
+        else:
+            twice_area = np.linalg.norm(np.cross(e1, e2), axis=-1)
+        longest = np.maximum(np.maximum(np.sum(e1 * e1, -1), np.sum(e2 * e2, -1)), np.sum((c - b) ** 2, -1))
+        if not np.all(twice_area > _DEGENERATE_ULPS * np.finfo(np.float64).eps * longest):
+            twice_area = np.min(twice_area)
             raise ValueError(f"UniformTriangle: vertices 'a', 'b', 'c' are degenerate: area {0.5 * twice_area:g} "
                              f"must be > {0.5 * _DEGENERATE_ULPS * np.finfo(np.float64).eps:g} × |longest edge|² "
                              f"(collinear or coincident points)")

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_parameter
+from .._core.params import check_parameter, in_range
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Directions
 from .._core.numerics import azimuth_fraction, direction_from_one_minus_cos, one_minus_cos_theta
@@ -37,8 +37,14 @@ class VonMisesFisher(Sampler):
     event_shape: ClassVar = (3,)
     periodic_dims: ClassVar = (1,)
 
+    measure: ClassVar = "solid angle"
+    parameter_ranks: ClassVar = {"kappa": 0}
+
     def __post_init__(self):
         check_parameter("VonMisesFisher", "kappa", self.kappa, 1e-6, 1e7)
+
+    def _parameters_valid(self):
+        return in_range(self.kappa, 1e-6, 1e7)
 
     def _s(self):
         return -jnp.expm1(-2.0 * self.kappa)

@@ -5,7 +5,7 @@ Joe & Kuo direction numbers, Owen scrambling) and `sources` (the `Random`, `Stra
 sources the estimators stream from; its docstring states the streams and the float grid).
 """
 
-from .philox import SEED_WORDS, bits_to_unit, philox4x32, random_bits, seed_from_key
+from .philox import SEED_WORDS, as_key, bits_to_unit, philox4x32, random_bits, seed_from_key
 from .sobol import MAX_SOBOL_DIMS, owen_scramble, sobol_direction_numbers, sobol_points
 from .sources import Random, Sobol, Source, SourceLike, Stratified, as_source, uniform_block
 
@@ -18,7 +18,7 @@ from .sobol import (_JOE_KUO_6_21201, _SOBOL_BITS, _reverse_bits, _reverse_bits_
 from .sources import _block_jit, _check_replicates  # noqa: F401
 
 __all__ = [
-    "Random", "Stratified", "Sobol", "Source", "as_source", "seed_from_key", "uniform_block",
+    "Random", "Stratified", "Sobol", "Source", "as_key", "as_source", "seed_from_key", "uniform_block",
     "philox4x32", "sobol_direction_numbers", "sobol_points", "owen_scramble", "bits_to_unit",
     "MAX_SOBOL_DIMS",
 ]

@@ -69,11 +69,33 @@ def bits_to_unit(bits: jax.Array, dtype) -> jax.Array:
     return top * np.float32(2.0 ** -23) + np.float32(2.0 ** -24)
 
 
-def seed_from_key(key: jax.Array) -> jax.Array:
-    """The SEED_WORDS uint32 words every source derives its points from; consumes `key` once."""
-    if not (isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key)):
-        raise ValueError("uniforms: 'key' must be a typed key from jax.random.key(...)")
-    return jax.random.bits(key, (SEED_WORDS,), jnp.uint32)
+def as_key(key, owner: str = "jaxsample") -> jax.Array:
+    """The one key rule of every entry point: `key` as a typed JAX key.
+
+    Accepted: a typed key (`jax.random.key(seed)`, shape ()) and a legacy raw key
+    (`jax.random.PRNGKey(seed)`: a uint32 array whose shape is the default implementation's key
+    data, (2,) for threefry), which is wrapped with `jax.random.wrap_key_data`, so it draws exactly the
+    stream of the typed key it holds the data of. Anything else is a `TypeError` that says what a key
+    is; so is an array of keys (vmap over them instead).
+    """
+    what = ("a key is jax.random.key(seed) (a typed key of shape ()) or a legacy jax.random.PRNGKey(seed) "
+            "(a uint32 array of shape {legacy}); for many keys, jax.vmap over them")
+    legacy = tuple(jax.eval_shape(lambda: jax.random.key_data(jax.random.key(0))).shape)
+    if isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
+        if key.shape != ():
+            raise TypeError(f"{owner}: parameter 'key' has shape {key.shape}; " + what.format(legacy=legacy))
+        return key
+    if isinstance(key, (jax.Array, np.ndarray)) and key.dtype == np.uint32 and key.shape == legacy:
+        return jax.random.wrap_key_data(key)
+    got = f"{type(key).__name__}" + (f" of dtype {key.dtype} and shape {key.shape}" if hasattr(key, "dtype") else "")
+    raise TypeError(f"{owner}: parameter 'key' must be a JAX PRNG key; got {got}. " + what.format(legacy=legacy))
+
+
+def seed_from_key(key: jax.Array, owner: str = "jaxsample") -> jax.Array:
+    """The SEED_WORDS uint32 words every source derives its points from; consumes `key` once.
+
+    `key` follows `as_key`'s rule (typed, or a legacy uint32 key meaning the same typed key)."""
+    return jax.random.bits(as_key(key, owner), (SEED_WORDS,), jnp.uint32)
 
 
 def _index_words(offset, count: int):

@@ -269,11 +269,11 @@ def uniform_block(uniforms: SourceLike, key: jax.Array, offset, count: int, dims
     """Points with global indices [offset, offset + count) of the stream `uniforms` draws with `key`.
 
     Calling it on consecutive windows gives exactly the points of one call on their union.
-    `key` is a typed key (consumed) or the uint32 words of `seed_from_key`; `total` is the number
+    `key` is a JAX key (`as_key`'s rule: typed, or a legacy uint32 key); `total` is the number
     of points of the whole stream (required for "stratified", and it bounds the Sobol' index).
     """
     source = as_source(uniforms)
-    seed = key if (isinstance(key, jax.Array) and key.dtype == jnp.uint32) else seed_from_key(key)
+    seed = seed_from_key(key, "uniform_block")
     dtype = jnp.zeros(()).dtype if dtype is None else jnp.dtype(dtype)
     return _block_jit(source, seed, _u32(offset), int(count), int(dims), dtype, total)
 

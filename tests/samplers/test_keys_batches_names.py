@@ -1,0 +1,182 @@
+"""A JAX user's first hour with the samplers (issue 14): keys, batch shapes, the names TFP and
+distrax users type, and invalid parameters that must never give a confident number.
+
+Every test here failed on the code before issue 14 (legacy keys drew another stream, a batched
+PhongLobe raised a broadcasting TypeError, `log_prob`/`seed=`/`batch_shape` did not exist, a
+string exponent was accepted, a traced negative exponent gave a finite gradient). All checks are
+exact or structural: none is statistical, so none can fail by chance.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxsample as js
+
+EXPONENTS = jnp.array([1.0, 10.0, 100.0])
+
+
+# ---- keys: one rule for every entry point ------------------------------------------------------
+
+def test_a_legacy_key_draws_exactly_the_stream_of_the_typed_key_it_holds():
+    lobe = js.PhongLobe(20.0)
+    typed = lobe.sample(jax.random.key(7), (9,))
+    legacy = lobe.sample(jax.random.PRNGKey(7), (9,))
+    wrapped = lobe.sample(jax.random.wrap_key_data(jax.random.PRNGKey(7)), (9,))
+    np.testing.assert_array_equal(np.asarray(legacy), np.asarray(typed))
+    np.testing.assert_array_equal(np.asarray(wrapped), np.asarray(typed))
+    x, p = lobe.sample_with_pdf(jax.random.PRNGKey(7), (9,))
+    np.testing.assert_array_equal(np.asarray(x), np.asarray(typed))
+    # Under jit too (the legacy key arrives as a uint32 tracer).
+    jitted = jax.jit(lambda k: lobe.sample(k, (9,)))(jax.random.PRNGKey(7))
+    np.testing.assert_array_equal(np.asarray(jitted), np.asarray(typed))
+
+
+@pytest.mark.parametrize("bad", [0, 1.5, "key", np.zeros(2, np.float32), jnp.zeros(3, jnp.uint32),
+                                 jnp.zeros((2, 2), jnp.uint32)], ids=["int", "float", "str", "float-array",
+                                                                     "uint32-3", "uint32-2x2"])
+def test_anything_that_is_not_a_key_is_a_type_error_saying_what_a_key_is(bad):
+    with pytest.raises(TypeError, match="PRNG key.*jax.random.key"):
+        js.PhongLobe(20.0).sample(bad, (4,))
+    with pytest.raises(TypeError, match="PRNG key"):
+        js.estimate(lambda w: w[2], js.CosineHemisphere(), bad, 64)
+
+
+def test_an_array_of_typed_keys_is_refused_with_the_vmap_advice():
+    with pytest.raises(TypeError, match="vmap"):
+        js.CosineHemisphere().sample(jax.random.split(jax.random.key(0), 3), (4,))
+
+
+# ---- batch shapes --------------------------------------------------------------------------
+
+def test_batch_shape_is_the_broadcast_of_the_parameters_leading_dimensions():
+    assert js.PhongLobe(20.0).batch_shape == ()
+    assert js.CosineHemisphere().batch_shape == ()
+    assert js.PhongLobe(EXPONENTS).batch_shape == (3,)
+    assert js.TruncatedExponential(jnp.ones((2, 1)), jnp.ones(5)).batch_shape == (2, 5)
+    # A vector parameter's own dimension is not a batch dimension.
+    normals = jnp.array([[0.0, 0, 1], [0, 1, 0], [1, 0, 0], [1, 1, 1]])
+    assert js.Oriented(js.PhongLobe(3.0), normals).batch_shape == (4,)
+    assert js.Oriented(js.PhongLobe(EXPONENTS[:, None]), normals).batch_shape == (3, 4)
+    assert js.UniformTriangle(jnp.zeros((5, 3)), jnp.array([1.0, 0, 0]), jnp.array([0.0, 1, 0])).batch_shape == (5,)
+    assert js.UniformBox(jnp.zeros(3), jnp.ones(3)).batch_shape == ()
+    assert js.Discrete(jnp.ones(6)).batch_shape == ()
+    assert js.PhongLobe(EXPONENTS).event_shape == (3,)
+
+
+@pytest.mark.parametrize("sample_shape", [(), 5, (5, 2)], ids=["scalar", "int", "pair"])
+def test_sample_returns_sample_shape_plus_batch_shape_plus_event_shape(sample_shape):
+    lobe = js.PhongLobe(EXPONENTS)
+    leading = (sample_shape,) if isinstance(sample_shape, int) else tuple(sample_shape)
+    x = lobe.sample(jax.random.key(1), sample_shape)
+    assert x.shape == leading + (3, 3)
+    x, p = lobe.sample_with_pdf(jax.random.key(1), sample_shape)
+    assert x.shape == leading + (3, 3) and p.shape == leading + (3,)
+
+
+def test_each_batch_member_warps_its_own_stream_points():
+    # Sample (s, b) is member b's warp of stream point s * 3 + b (C order over sample + batch).
+    key = jax.random.key(2)
+    lobe = js.PhongLobe(EXPONENTS)
+    x = np.asarray(lobe.sample(key, (4,)))
+    u = js.uniforms.uniform_block("random", jax.random.clone(key), 0, 12, 2).reshape(4, 3, 2)
+    for b, n in enumerate(np.asarray(EXPONENTS)):
+        expected = np.asarray(js.PhongLobe(float(n)).warp(u[:, b]))
+        np.testing.assert_allclose(x[:, b], expected, rtol=1e-6, atol=1e-7)
+    # Members differ (a batch that ignored its exponents would repeat one lobe).
+    assert np.mean(x[:, 2, 2]) > np.mean(x[:, 0, 2])
+
+
+def test_pdf_and_log_pdf_broadcast_points_against_the_batch():
+    lobe = js.PhongLobe(EXPONENTS)
+    x = lobe.sample(jax.random.key(3), (5,))
+    p = np.asarray(lobe.pdf(x))
+    assert p.shape == (5, 3)
+    for b, n in enumerate(np.asarray(EXPONENTS)):
+        np.testing.assert_allclose(p[:, b], np.asarray(js.PhongLobe(float(n)).pdf(x[:, b])), rtol=1e-6)
+    # One point, every member: shape batch_shape.
+    one = jnp.array([0.0, 0.6, 0.8])
+    expected = [(n + 1) / (2 * np.pi) * 0.8 ** n for n in np.asarray(EXPONENTS, np.float64)]
+    np.testing.assert_allclose(np.asarray(lobe.pdf(one)), expected, rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(lobe.log_pdf(one)), np.log(expected), rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(lobe.inverse(x))[..., 0],
+                               np.asarray(jax.vmap(lambda xs: lobe.inverse(xs))(x))[..., 0], rtol=1e-6)
+
+
+def test_a_batch_of_rotated_lobes_matches_each_lobe_alone():
+    normals = jnp.array([[0.0, 0, 1], [0, 1, 0], [1, 1, 1]])
+    batch = js.Oriented(js.PhongLobe(5.0), normals)
+    x, p = batch.sample_with_pdf(jax.random.key(4), (6,))
+    assert x.shape == (6, 3, 3)
+    for b in range(3):
+        alone = js.Oriented(js.PhongLobe(5.0), normals[b])
+        np.testing.assert_allclose(np.asarray(p[:, b]), np.asarray(alone.pdf(x[:, b])), rtol=1e-5)
+        # Each member's samples lie in its own lobe (cosine to its normal above 0).
+        axis = np.asarray(normals[b]) / np.linalg.norm(np.asarray(normals[b]))
+        assert np.all(np.asarray(x[:, b]) @ axis > 0)
+
+
+def test_tables_that_cannot_batch_say_so():
+    with pytest.raises(ValueError, match="one table per sampler"):
+        js.Discrete(np.ones((2, 3)))
+    with pytest.raises(ValueError, match="one table per sampler"):
+        js.PiecewiseConstant1D(np.ones((2, 3)))
+
+
+# ---- the names a TFP, distrax or NumPyro user types first ------------------------------------
+
+def test_log_prob_prob_seed_and_sample_shape_are_the_same_functions():
+    lobe = js.PhongLobe(20.0)
+    key = jax.random.key(5)
+    x = lobe.sample(jax.random.clone(key), (8,))
+    np.testing.assert_array_equal(np.asarray(lobe.sample(seed=jax.random.clone(key), sample_shape=(8,))),
+                                  np.asarray(x))
+    np.testing.assert_array_equal(np.asarray(lobe.sample(jax.random.clone(key), shape=(8,))), np.asarray(x))
+    np.testing.assert_array_equal(np.asarray(lobe.log_prob(x)), np.asarray(lobe.log_pdf(x)))
+    np.testing.assert_array_equal(np.asarray(lobe.prob(x)), np.asarray(lobe.pdf(x)))
+    with pytest.raises(TypeError, match="once"):
+        lobe.sample(key, (8,), seed=key)
+    with pytest.raises(TypeError, match="missing the key"):
+        lobe.sample(sample_shape=(8,))
+
+
+# ---- no confident wrong answers ----------------------------------------------------------------
+
+@pytest.mark.parametrize("make", [lambda: js.PhongLobe("20"), lambda: js.Exponential("1"),
+                                  lambda: js.VonMisesFisher(None), lambda: js.Discrete(["a", "b"]),
+                                  lambda: js.UniformBox("0", "1"), lambda: js.PhongLobe(True)],
+                         ids=["phong-str", "exponential-str", "vmf-none", "discrete-str", "box-str", "phong-bool"])
+def test_a_parameter_that_is_not_a_number_is_a_type_error_at_construction(make):
+    with pytest.raises(TypeError, match="must be a number"):
+        make()
+
+
+# (name, build from one traced parameter, an invalid value, a valid value)
+INVALID_UNDER_JIT = [
+    ("phong-negative", lambda t: js.PhongLobe(t), -1.0, 3.0),
+    ("exponential-zero-rate", lambda t: js.Exponential(t), 0.0, 2.0),
+    ("vmf-negative", lambda t: js.VonMisesFisher(t), -5.0, 5.0),
+    ("cone-empty", lambda t: js.UniformCone(one_minus_cos_theta_max=t), 0.0, 0.5),
+    ("discrete-all-zero", lambda t: js.Discrete(t * jnp.ones(4)), 0.0, 1.0),
+    ("mixture-all-zero", lambda t: js.Mixture((js.CosineHemisphere(), js.PhongLobe(3.0)), t * jnp.ones(2)), 0.0, 1.0),
+    ("oriented-zero-normal", lambda t: js.Oriented(js.PhongLobe(3.0), t * jnp.array([0.0, 0.0, 1.0])), 0.0, 1.0),
+]
+
+
+@pytest.mark.parametrize("name,build,bad,good", INVALID_UNDER_JIT, ids=[c[0] for c in INVALID_UNDER_JIT])
+def test_a_traced_invalid_parameter_gives_nan_samples_densities_and_gradients(name, build, bad, good):
+    key = jax.random.key(6)
+
+    def first_value(t):
+        sampler = build(t)
+        x, p = sampler.sample_with_pdf(jax.random.clone(key), (8,))
+        return jnp.sum(jnp.asarray(x, jnp.float32)) + jnp.sum(p)
+
+    value = jax.jit(first_value)
+    grad = jax.jit(jax.grad(first_value))
+    assert np.isnan(float(value(bad))) and np.isnan(float(grad(bad)))
+    # The valid value stays finite: the rule poisons only invalid parameters.
+    assert np.isfinite(float(value(good))) and np.isfinite(float(grad(good)))
