@@ -108,8 +108,8 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
             ax_n.loglog(ns, anchor_e * (ns / anchor_n) ** slope, "k" + style, lw=0.8, label=f"n^{slope}")
         for target in verdicts.TARGETS:
             ax_t.axhline(target * abs(group[0]["exact"]), color="k", lw=0.6, ls=":")
-            ax_t.annotate(f"{target:g} rel.", (0.01, target * abs(group[0]["exact"])), xycoords=("axes fraction", "data"),
-                          fontsize=6, va="bottom")
+            ax_t.annotate(f"{target:g} rel.", (0.01, target * abs(group[0]["exact"])),
+                          xycoords=("axes fraction", "data"), fontsize=6, va="bottom")
         ax_n.set(xlabel="samples n", ylabel="RMSE", title=f"{integrand}: RMSE against n (slope ± se)")
         ax_t.set(xlabel="seconds (measured ns/sample × n)", ylabel="RMSE", title="RMSE against time; target errors")
         ax_n.legend(fontsize=6)

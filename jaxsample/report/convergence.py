@@ -334,7 +334,8 @@ def headline_markdown(rows: list[dict]) -> str:
         previous = name
         k = {s: kinds[(name, s)] for (i, s) in kinds if i == name}
         if not v["best"]:
-            out.append(f"| {label} | {v['target']:g} | not reached within the budget (n ≤ {_power_of_two(v['n_max'])}) "
+            budget = _power_of_two(v["n_max"])
+            out.append(f"| {label} | {v['target']:g} | not reached within the budget (n ≤ {budget}) "
                        "| — | — | — | — |")
             continue
         time = v["time"]
@@ -349,9 +350,12 @@ def headline_markdown(rows: list[dict]) -> str:
             non_qmc, over_non_qmc = "none reaches it", "—"
         else:
             nq_time = v["non_qmc_time"]
-            nq_names = ("exact: " + ", ".join(v["best_non_qmc"])) if nq_time.bound == "exact" else _who(v["best_non_qmc"], k)
-            non_qmc = nq_names if nq_time.bound == "exact" else f"{nq_names} ({V.format_time(nq_time)})"
-            over_non_qmc = "— (exact)" if "exact" in (time.bound, nq_time.bound) else V.format_ratio(v["over_non_qmc"])
+            if nq_time.bound == "exact":
+                non_qmc = "exact: " + ", ".join(v["best_non_qmc"])
+            else:
+                non_qmc = f"{_who(v['best_non_qmc'], k)} ({V.format_time(nq_time)})"
+            exact_either = "exact" in (time.bound, nq_time.bound)
+            over_non_qmc = "— (exact)" if exact_either else V.format_ratio(v["over_non_qmc"])
         out.append(f"| {label} | {v['target']:g} | {who} | {its_time} | {over_base} | {non_qmc} | {over_non_qmc} |")
     return "\n".join(out) + "\n"
 

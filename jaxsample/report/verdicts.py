@@ -154,7 +154,8 @@ def time_to_target(seconds: Sequence[float], rel_rmse: Sequence[float], target: 
             log_e0, log_e1 = math.log(e[j - 1]), math.log(max(e[j], np.finfo(float).tiny))
             fraction = (math.log(target) - log_e0) / (log_e1 - log_e0)
             log_t = math.log(t[j - 1]) + fraction * (math.log(t[j]) - math.log(t[j - 1]))
-            rate = slope if math.isfinite(slope) and slope < 0 else (log_e1 - log_e0) / (math.log(t[j]) - math.log(t[j - 1]))
+            local = (log_e1 - log_e0) / (math.log(t[j]) - math.log(t[j - 1]))
+            rate = slope if math.isfinite(slope) and slope < 0 else local
             return Time(math.exp(log_t), "=", rmse_relative_error(n_keys) / abs(rate))
     return Time(float(t[-1]), ">", why="floor" if end < len(t) - 1 else "budget")
 
