@@ -7,8 +7,9 @@ Sections (each computed by a module of this package, runnable alone as `python -
 jaxsample.report.<module>` or `python benchmarks/<module>.py` in a checkout):
   1. environment (device, dtype, JAX version, PRNG);
   2. samplers: normalization, a known integral ± stderr, time per million (`samplers_table.py`);
-  3. convergence: RMSE, bias, variance, ns/sample, time to unit variance, efficiency and RMSE
-     slope per (integrand, strategy), with plots (`convergence.py`);
+  3. convergence: which strategy reaches a target error first, and how much sooner (`verdicts.py`);
+     RMSE, bias, variance, ns/sample, floor, RMSE slope ± se and time to each target per
+     (integrand, strategy), with plots (`convergence.py`);
   4. baselines: vectorized NumPy and the uniform-generation floor, as ratios (`baselines.py`),
      and the speed of every public path against its target (`paths.py`);
   5. the curse of dimensionality: quadrature against Monte Carlo and Sobol' (`dimensionality.py`);
@@ -64,28 +65,53 @@ def _environment() -> dict:
             "machine": platform.machine(), "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
 
 
+KIND_COLOURS = {"plain": "tab:gray", "importance": "tab:blue", "MIS": "tab:purple", "stratified": "tab:orange",
+                "QMC": "tab:green"}
+
+
 def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
-    """Log–log RMSE against n and against seconds per integrand, and efficiency bars."""
+    """Log–log RMSE against n and against seconds per integrand (floors marked), and the time each
+    strategy takes to reach each target error, grouped by integrand and coloured by kind."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    convergence = _piece("convergence")
+    verdicts = _piece("verdicts")
     written = []
     for integrand in dict.fromkeys(r["integrand"] for r in rows):
         group = [r for r in rows if r["integrand"] == integrand]
         fig, (ax_n, ax_t) = plt.subplots(1, 2, figsize=(11, 4.2))
+        floor_labelled = False
         for r in group:
             ns = np.array(r["ns"], float)
             rmse = np.maximum(np.array(r["rmse"]), 1e-12)
-            ax_n.loglog(ns, rmse, "o-", ms=3, label=f"{r['strategy']} ({r['slope']:.2f})")
-            ax_t.loglog(ns * r["ns_per_sample"] * 1e-9, rmse, "o-", ms=3, label=r["strategy"])
+            seconds = np.array(r["seconds"])
+            if r["zero_variance"]:
+                label = f"{r['strategy']} (exact)"
+            elif np.isfinite(r["slope"]):
+                label = f"{r['strategy']} ({r['slope']:.2f} ± {r['slope_stderr']:.2f})"
+            else:
+                label = r["strategy"]
+            line, = ax_n.loglog(ns, rmse, "o-", ms=3, label=label)
+            ax_t.loglog(seconds, rmse, "o-", ms=3, color=line.get_color(), label=r["strategy"])
+            if r["floor_n"] is not None:  # the floor: from its first point on, the RMSE stops falling
+                at = ns >= r["floor_n"]
+                for ax, x in ((ax_n, ns), (ax_t, seconds)):
+                    ax.loglog(x[at], rmse[at], "s", ms=8, mfc="none", mec="red",
+                              label=None if floor_labelled or ax is ax_t else "floor (RMSE stops falling)")
+                floor_labelled = True
         anchor_n, anchor_e = float(group[0]["ns"][0]), float(max(group[0]["rmse"][0], 1e-12))
         ns = np.array(group[0]["ns"], float)
         for slope, style in ((-0.5, ":"), (-1.0, "--"), (-1.5, "-.")):
             ax_n.loglog(ns, anchor_e * (ns / anchor_n) ** slope, "k" + style, lw=0.8, label=f"n^{slope}")
-        ax_n.set(xlabel="samples n", ylabel="RMSE", title=f"{integrand}: RMSE against n")
-        ax_t.set(xlabel="seconds (measured ns/sample × n)", ylabel="RMSE", title="RMSE against time")
+        for target in verdicts.TARGETS:
+            ax_t.axhline(target * abs(group[0]["exact"]), color="k", lw=0.6, ls=":")
+            ax_t.annotate(f"{target:g} rel.", (0.01, target * abs(group[0]["exact"])),
+                          xycoords=("axes fraction", "data"), fontsize=6, va="bottom")
+        ax_n.set(xlabel="samples n", ylabel="RMSE", title=f"{integrand}: RMSE against n (slope ± se)")
+        ax_t.set(xlabel="seconds (measured ns/sample × n)", ylabel="RMSE", title="RMSE against time; target errors")
         ax_n.legend(fontsize=6)
         ax_t.legend(fontsize=6)
         fig.tight_layout()
@@ -93,17 +119,7 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
         fig.savefig(path, dpi=110)
         plt.close(fig)
         written.append(path.name)
-    fig, ax = plt.subplots(figsize=(10, max(4, 0.22 * len(rows))))
-    labels = [f"{r['integrand']} / {r['strategy']}" for r in rows]
-    ax.barh(labels, [max(r["relative_efficiency"], 1e-3) for r in rows], color="tab:blue")
-    ax.set_xscale("log")
-    ax.axvline(1.0, color="k", lw=0.8)
-    ax.set(xlabel="efficiency relative to uniform sampling (1 / (MSE × time)), log scale")
-    ax.tick_params(axis="y", labelsize=6)
-    fig.tight_layout()
-    fig.savefig(out / "efficiency.png", dpi=110)
-    plt.close(fig)
-    written.append("efficiency.png")
+    written.append(_time_to_target_plot(rows, out, plt, convergence, verdicts))
     if dims_rows:
         fig, ax = plt.subplots(figsize=(6, 4))
         budget = max(r["budget"] for r in dims_rows)
@@ -119,15 +135,75 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
     return written
 
 
+def _time_to_target_plot(rows, out: Path, plt, convergence, verdicts) -> str:
+    """efficiency.png: one panel per target error; a bar per strategy (time to reach the target,
+    log scale, shorter wins, with its 1σ from the keys), grouped by integrand, coloured by kind;
+    "exact" and "not reached" are written where the bar would be."""
+    from matplotlib.patches import Patch
+
+    labels, positions, y = [], [], 0.0
+    integrands = list(dict.fromkeys(r["integrand"] for r in rows))
+    for integrand in integrands:
+        for r in rows:
+            if r["integrand"] == integrand:
+                labels.append(f"{integrand} / {r['strategy']}")
+                positions.append(y)
+                y += 1.0
+        y += 0.8  # a gap between integrands
+    ordered = [r for integrand in integrands for r in rows if r["integrand"] == integrand]
+    targets = list(ordered[0]["times"])
+    fig, axes = plt.subplots(1, len(targets), figsize=(5 * len(targets), max(4, 0.2 * y + 1)), sharey=True)
+    longest = max(max(r["seconds"]) for r in rows)
+    shortest = min(min(r["seconds"]) for r in rows)
+    for ax, target in zip(np.atleast_1d(axes), targets):
+        for r, pos in zip(ordered, positions):
+            t = convergence.row_times(r)[target]
+            colour = KIND_COLOURS[r["kind"]]
+            if t.bound == "exact":
+                ax.text(shortest, pos, "exact", color=colour, va="center", fontsize=6, fontweight="bold")
+            elif t.bound == ">":
+                ax.barh(pos, t.seconds, color=colour, alpha=0.25, hatch="//", edgecolor=colour)
+                ax.text(t.seconds, pos, f" not reached ({t.why})", va="center", fontsize=5)
+            else:
+                err = t.seconds * t.rel_err if t.bound == "=" else None
+                ax.barh(pos, t.seconds, color=colour, xerr=err, error_kw={"lw": 0.6})
+                if t.bound == "<=":
+                    ax.text(t.seconds, pos, " ≤ (first point)", va="center", fontsize=5)
+        ax.set_xscale("log")
+        ax.set_xlim(shortest / 3, longest * 30)
+        ax.set(xlabel="seconds to reach it (n × ns/sample; log)", title=f"relative RMSE {target}")
+        for integrand in integrands[1:]:
+            first = positions[[label.split(" / ")[0] for label in labels].index(integrand)]
+            ax.axhline(first - 0.9, color="k", lw=0.4)
+    first_ax = np.atleast_1d(axes)[0]
+    first_ax.set_yticks(positions, labels, fontsize=6)
+    first_ax.invert_yaxis()
+    fig.legend(handles=[Patch(color=c, label=k) for k, c in KIND_COLOURS.items()], fontsize=7, loc="lower center",
+               ncol=len(KIND_COLOURS))
+    fig.suptitle("Time to reach a target error, per integrand (shorter wins); colour = kind of strategy", fontsize=9)
+    fig.tight_layout(rect=(0, 0.5 / max(4, 0.2 * y + 1), 1, 1))
+    fig.savefig(out / "efficiency.png", dpi=110)
+    plt.close(fig)
+    return "efficiency.png"
+
+
+def _verdict_record(v: dict) -> dict:
+    """A verdict (convergence.verdict_rows) as flat CSV fields."""
+    record = {"integrand": v["integrand"], "target": v["target"], "best": " | ".join(v["best"]),
+              "best_non_qmc": " | ".join(v["best_non_qmc"]), "n_keys": v["n_keys"], "n_max": v["n_max"]}
+    for key in ("time", "non_qmc_time"):
+        if key in v:
+            record[f"{key}_s"], record[f"{key}_bound"], record[f"{key}_rel_err"] = (v[key].seconds, v[key].bound,
+                                                                                  v[key].rel_err)
+    for key in ("over_baseline", "over_non_qmc"):
+        if key in v:
+            record[key], record[f"{key}_bound"], record[f"{key}_rel_err"] = (v[key].value, v[key].bound,
+                                                                            v[key].rel_err)
+    return record
+
+
 def _headline(rows: list[dict]) -> str:
-    out = ["| integrand | best strategy | its efficiency vs uniform | RMSE @ n_max | RMSE slope |",
-           "|---|---|---|---|---|"]
-    for integrand in dict.fromkeys(r["integrand"] for r in rows):
-        group = [r for r in rows if r["integrand"] == integrand]
-        best = max(group, key=lambda r: r["efficiency"])
-        out.append(f"| {integrand} | {best['strategy']} | {best['relative_efficiency']:.3g}× | "
-                   f"{best['rmse_at_max']:.3g} | {best['slope']:.2f} |")
-    return "\n".join(out) + "\n"
+    return _piece("convergence").headline_markdown(rows)
 
 
 def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Path:
@@ -156,15 +232,41 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     convergence = _piece("convergence")
     rows = convergence.run_study(quick=quick, tiny=tiny, progress=progress)
     _write_csv(out / "convergence.csv", rows)
-    md += ["## Which strategy wins\n", "Efficiency = 1 / (MSE × time) at the largest n, relative to "
-           "plain uniform sampling of the same integrand (higher is better).\n", _headline(rows),
+    verdict_rows = convergence.verdict_rows(rows)
+    _write_csv(out / "verdicts.csv", [_verdict_record(v) for v in verdict_rows])
+    k, n_max = rows[0]["n_keys"], rows[0]["ns"][-1]
+    rel = 1.0 / np.sqrt(2.0 * k)
+    md += ["## Which strategy wins\n",
+           "To reach a given error, which strategy takes the least time, and how much less? For each integrand "
+           "and target relative RMSE (RMSE / exact value), the time each strategy needs is read off its measured "
+           "RMSE-against-time curve (time = n × its measured ns/sample), interpolated on log–log axes between "
+           f"measured points, never extrapolated past the last one (n = {n_max}) nor past a floor: a target "
+           "not crossed by then is \"not reached\". A strategy whose RMSE is within "
+           f"{_piece('verdicts').EXACT_ULPS} float32 ulps of the exact value at every n is \"exact\" (zero "
+           "variance; detected from the curve). The baseline is plain uniform sampling (for e^{-t} cos t on "
+           "[0, ∞), which has no uniform density, Exponential(1)); QMC = scrambled Sobol' points.\n",
+           f"Uncertainty: every RMSE is taken over k = {k} independent keys, so it carries a relative error of "
+           f"about 1/√(2k) = {100 * rel:.0f} %. A time read off the curve carries that divided by |slope| (the "
+           "fitted slope of log RMSE against log n; an error off by δ moves the crossing by δ/|slope|), a "
+           "speed-up the two times' errors in quadrature; \"≥\" marks a lower bound (the slower strategy did "
+           "not reach the target, so its time is at least the whole budget), and strategies within 2σ of the "
+           "fastest are named as tied. Timing noise is not in these errors: the strategies of one integrand "
+           "are timed in interleaved rounds (median of 5).\n",
+           _headline(rows),
            "## Speed against error, per integrand and strategy\n",
-           f"RMSE and bias over {rows[0]['n_keys']} independent keys at n = {rows[0]['ns'][-1]}; bias z = "
-           "bias / (RMSE/√keys); ns/sample measured on `js.estimate` under jit. MIS rows count one sample "
-           "per technique as two evaluations. Estimates at each n are prefix means of one stream per key "
-           "(Sobol': one scrambled sequence, whose power-of-two prefixes are nets); jittered points are "
-           "drawn anew per n. Zero-variance strategies are floored at the float32 rounding level "
-           "(see jaxsample/report/convergence.py).\n", convergence.markdown_table(rows)]
+           f"RMSE and bias over {k} independent keys at n = {n_max}; bias z = bias / (spread/√keys ⊕ 4 ulps), "
+           "and the bias in float32 ulps of the exact value. Kind is read off the strategy's definition "
+           "(Sobol' points → QMC, jittered → stratified, two techniques or a mixture → MIS, a non-uniform "
+           "density → importance, else plain). Estimates at each n are prefix means of one stream per key "
+           "(Sobol': one scrambled sequence, whose power-of-two prefixes are nets; jittered points are drawn "
+           "anew per n), summed in float64: what is left at a floor is the float32 per-sample values' own "
+           "rounding, which averaging does not remove when it is systematic (the bias in ulps shows it). "
+           "**Floor**: the first n from which the RMSE stops falling (no later point lies more than "
+           f"1/√k = {100 * np.sqrt(2.0) * rel:.0f} % below it in log). Slopes are least-squares fits of log RMSE "
+           f"against log n over the points before the floor with n ≥ {convergence.FIT_FROM_N} (past the "
+           "pre-asymptotic start of the nets), ± a standard error that is never below what the keys allow. "
+           "MIS rows count one sample per technique as two evaluations. ns/sample measured on `js.estimate` "
+           "under jit (see jaxsample/report/convergence.py).\n", convergence.markdown_table(rows)]
 
     baselines = _piece("baselines")
     if tiny:

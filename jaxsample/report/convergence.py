@@ -1,23 +1,28 @@
-"""Speed against error: RMSE, bias, variance and time per (integrand, strategy).
+"""Speed against error: RMSE, bias, variance, time, and the time each strategy takes to reach an error.
 
 Run alone: `python benchmarks/convergence.py [--quick]` prints the table; the report
 (`python -m jaxsample report`) calls `run_study` and writes tables and plots from it.
 
 Method, for each (integrand, strategy):
 - Error: for each of K independent keys, the per-sample values Y_i = f(x_i)/p(x_i) (i < N) are
-  computed once and the estimates at n = 2^8, 2^10, ..., N are their prefix means. Prefixes of
-  one "random" stream are independent-sample estimates; prefixes of length 2^m of one
-  Owen-scrambled Sobol' sequence are randomized (0, m, 2)-nets, so both are valid estimates at
-  every n. Jittered ("stratified") points depend on n, so they are drawn anew per n. RMSE and
-  bias at each n are taken over the K keys against the exact value; the slope is the least-squares
-  fit of log RMSE against log n.
+  computed once (float32, the library's path) and the estimates at n = 4, 16, ..., N are their
+  prefix means, summed in float64 so that the sum adds no rounding of its own. Prefixes of one
+  "random" stream are independent-sample estimates; prefixes of length 2^m of one Owen-scrambled
+  Sobol' sequence are randomized (0, m, 2)-nets, so both are valid estimates at every n. Jittered
+  ("stratified") points depend on n, so they are drawn anew per n. RMSE and bias at each n are
+  taken over the K keys against the exact value.
 - Time: the library path itself, `jaxsample.estimate` (or `estimate_mis`) under `jit`, at n_time
-  samples, median of repeats after a warm-up; ns per sample = time / n_time.
+  samples; the strategies of one integrand are timed in interleaved rounds (`timing.py`), so a
+  burst of load on a shared machine hits them alike; ns per sample = median time / n_time, and
+  the time of n samples is n × that (throughput: a call's fixed overhead is not counted).
+- Verdicts (`verdicts.py`): a strategy whose RMSE is within a few float32 ulps of the exact value
+  at every n is "exact"; otherwise the floor (the first point from which the RMSE stops falling,
+  within the 1/sqrt(2K) an RMSE over K keys carries) is detected, the slope of log RMSE against
+  log n is fitted with its standard error over the points before it (n >= FIT_FROM_N, past the
+  pre-asymptotic start of the Sobol' nets), and the time to reach each target relative RMSE is
+  read off the curve of RMSE against time.
 - Bias z-score: mean error over the keys divided by its standard error (the spread of the K
   estimates / sqrt(K), combined with 4 float32 ulps of the exact value).
-- Figures of merit (Veach 1997; PBRT): time to unit variance = MSE(N) * N * seconds per sample,
-  and efficiency = 1 / that, shown relative to plain uniform sampling of the same integrand.
-  Zero-variance strategies are floored at MSE = (2^-23 * exact)^2, the float32 rounding level.
 """
 
 from __future__ import annotations
@@ -33,7 +38,10 @@ import numpy as np
 
 import jaxsample as js
 from jaxsample import uniforms as U
-from .timing import median_seconds
+from . import verdicts as V
+from .timing import interleaved_medians
+
+FIT_FROM_N = 256
 
 COS30 = float(np.cos(np.pi / 6))
 CAP_AXIS = np.array([0.5, 0.0, 1.0]) / np.linalg.norm([0.5, 0.0, 1.0])
@@ -54,6 +62,21 @@ class Strategy:
     sampler: object = None  # a Sampler, or a tuple of two for MIS
     uniforms: str = "random"
     heuristic: str | None = None  # MIS: "balance" | "power"; None otherwise
+    importance: bool = False  # the sampler's density is not uniform on the domain
+    baseline: bool = False    # the integrand's reference ("plain uniform") strategy for speed-ups
+
+    @property
+    def kind(self) -> str:
+        """plain | importance | MIS | stratified | QMC, from the definition: the point set first
+        (scrambled Sobol' -> QMC, jittered -> stratified), then the estimator (two techniques, or a
+        one-sample mixture -> MIS), then the density (non-uniform -> importance, else plain)."""
+        if self.uniforms == "sobol":
+            return V.QMC
+        if self.uniforms == "stratified":
+            return "stratified"
+        if self.heuristic is not None or isinstance(self.sampler, js.Mixture):
+            return "MIS"
+        return "importance" if self.importance else "plain"
 
 
 def _cap(w):
@@ -80,33 +103,37 @@ def strategies() -> list[Strategy]:
     hemi = js.UniformHemisphere()
     cosine = js.CosineHemisphere()
     for name, phong_n in (("hemi_cos1", 0.5), ("hemi_cos3", 2.0), ("hemi_cos10", 8.0)):
-        S += [Strategy(name, "uniform", hemi), Strategy(name, "cosine", cosine),
-              Strategy(name, f"phong{phong_n:g}", js.PhongLobe(phong_n)),
-              Strategy(name, "cosine+stratified", cosine, "stratified"),
-              Strategy(name, "cosine+sobol", cosine, "sobol")]
-    S += [Strategy("sphere_cos2", "uniform", js.UniformSphere()),
+        S += [Strategy(name, "uniform", hemi, baseline=True), Strategy(name, "cosine", cosine, importance=True),
+              Strategy(name, f"phong{phong_n:g}", js.PhongLobe(phong_n), importance=True),
+              Strategy(name, "cosine+stratified", cosine, "stratified", importance=True),
+              Strategy(name, "cosine+sobol", cosine, "sobol", importance=True)]
+    S += [Strategy("sphere_cos2", "uniform", js.UniformSphere(), baseline=True),
           Strategy("sphere_cos2", "uniform+sobol", js.UniformSphere(), "sobol"),
-          Strategy("sphere_cos2", "vmf1", js.VonMisesFisher(1.0))]
+          Strategy("sphere_cos2", "vmf1", js.VonMisesFisher(1.0), importance=True)]
     lobe, vmf = js.PhongLobe(80.0), js.VonMisesFisher(90.0)
-    S += [Strategy("phong100", "uniform", hemi), Strategy("phong100", "cosine", cosine),
-          Strategy("phong100", "phong80", lobe), Strategy("phong100", "vmf90", vmf),
-          Strategy("phong100", "phong80+sobol", lobe, "sobol"),
-          Strategy("phong100", "mixture(cosine,phong80)", js.Mixture([cosine, lobe], jnp.array([0.5, 0.5]))),
-          Strategy("phong100", "mis-balance(cosine,phong80)", (cosine, lobe), heuristic="balance"),
-          Strategy("phong100", "mis-power(cosine,phong80)", (cosine, lobe), heuristic="power")]
+    S += [Strategy("phong100", "uniform", hemi, baseline=True),
+          Strategy("phong100", "cosine", cosine, importance=True),
+          Strategy("phong100", "phong80", lobe, importance=True), Strategy("phong100", "vmf90", vmf, importance=True),
+          Strategy("phong100", "phong80+sobol", lobe, "sobol", importance=True),
+          Strategy("phong100", "mixture(cosine,phong80)", js.Mixture([cosine, lobe], jnp.array([0.5, 0.5])),
+                   importance=True),
+          Strategy("phong100", "mis-balance(cosine,phong80)", (cosine, lobe), heuristic="balance", importance=True),
+          Strategy("phong100", "mis-power(cosine,phong80)", (cosine, lobe), heuristic="power", importance=True)]
     cap_cone = js.Oriented(js.UniformCone(float(np.cos(np.pi / 5))), jnp.asarray(CAP_AXIS, jnp.float32))
-    S += [Strategy("cap", "uniform", hemi), Strategy("cap", "cosine", cosine),
+    S += [Strategy("cap", "uniform", hemi, baseline=True), Strategy("cap", "cosine", cosine, importance=True),
           Strategy("cap", "uniform+stratified", hemi, "stratified"),
           Strategy("cap", "uniform+sobol", hemi, "sobol"),
-          Strategy("cap", "cone36°", cap_cone)]
+          Strategy("cap", "cone36°", cap_cone, importance=True)]
     for method in ("concentric", "polar"):
-        S += [Strategy("disk_r2", method, js.UniformDisk(method=method)),
+        S += [Strategy("disk_r2", method, js.UniformDisk(method=method), baseline=method == "concentric"),
               Strategy("disk_r2", f"{method}+sobol", js.UniformDisk(method=method), "sobol")]
     tri = js.UniformTriangle(jnp.array([0.0, 0.0]), jnp.array([1.0, 0.0]), jnp.array([0.0, 1.0]))
-    S += [Strategy("triangle_x2", "uniform", tri), Strategy("triangle_x2", "uniform+sobol", tri, "sobol")]
-    S += [Strategy("free_flight", "exponential1", js.Exponential(1.0)),
-          Strategy("free_flight", "exponential0.5", js.Exponential(0.5)),
-          Strategy("free_flight", "exponential1+sobol", js.Exponential(1.0), "sobol")]
+    S += [Strategy("triangle_x2", "uniform", tri, baseline=True),
+          Strategy("triangle_x2", "uniform+sobol", tri, "sobol")]
+    # [0, ∞) has no uniform density: the baseline is Exponential(1), importance sampling of e^{-t}.
+    S += [Strategy("free_flight", "exponential1", js.Exponential(1.0), importance=True, baseline=True),
+          Strategy("free_flight", "exponential0.5", js.Exponential(0.5), importance=True),
+          Strategy("free_flight", "exponential1+sobol", js.Exponential(1.0), "sobol", importance=True)]
     return S
 
 
@@ -161,19 +188,16 @@ def _prefix_means(y: np.ndarray, ns: list[int]) -> np.ndarray:
     return np.array([csum[n - 1] / n for n in ns])
 
 
-def _timed_estimate(strategy: Strategy, f, n_time: int) -> float:
+def _timed_run(strategy: Strategy, f, n_time: int):
+    """jit: key -> the library's estimate over n_time samples (MIS: n_time / 2 per technique)."""
     if strategy.heuristic is None:
-        run = jax.jit(lambda key: js.estimate(f, strategy.sampler, key, n_time,
-                                              uniforms=strategy.uniforms).mean)
-    else:
-        run = jax.jit(lambda key: js.estimate_mis(f, list(strategy.sampler), key,
-                                                  [n_time // 2, n_time // 2],
-                                                  heuristic=strategy.heuristic).mean)
-    return median_seconds(run, jax.random.key(99), repeats=3) / n_time
+        return jax.jit(lambda key: js.estimate(f, strategy.sampler, key, n_time, uniforms=strategy.uniforms).mean)
+    return jax.jit(lambda key: js.estimate_mis(f, list(strategy.sampler), key, [n_time // 2, n_time // 2],
+                                               heuristic=strategy.heuristic).mean)
 
 
-def study_one(strategy: Strategy, integrand: Integrand, ns: list[int], n_keys: int, n_time: int,
-              seed: int = 0) -> dict:
+def study_one(strategy: Strategy, integrand: Integrand, ns: list[int], n_keys: int, seed: int = 0) -> dict:
+    """The error curve of one (integrand, strategy): RMSE and bias over `n_keys` keys at each n."""
     values, dims = _values_fn(strategy, integrand.f)
     n_max = ns[-1]
     # An MIS "sample" is a pair (one draw per technique): it costs two evaluations of f.
@@ -198,58 +222,167 @@ def study_one(strategy: Strategy, integrand: Integrand, ns: list[int], n_keys: i
     errors = estimates - integrand.exact
     rmse = np.sqrt(np.mean(errors**2, axis=0))
     bias = np.mean(errors, axis=0)
-    floor = (2.0**-23 * abs(integrand.exact)) ** 2
-    fit = np.isfinite(np.log(rmse)) & (rmse > 0)
-    slope = float(np.polyfit(np.log(np.array(ns)[fit]), np.log(rmse[fit]), 1)[0]) if fit.sum() >= 2 else float("nan")
-    seconds_per_sample = _timed_estimate(strategy, integrand.f, n_time)
-    mse = max(float(rmse[-1]) ** 2, floor)
-    time_to_unit_variance = mse * n_max * seconds_per_sample
+    ulp = float(np.spacing(np.float32(abs(integrand.exact))))
     return {
-        "integrand": integrand.name, "strategy": strategy.name, "uniforms": strategy.uniforms,
+        "integrand": integrand.name, "strategy": strategy.name, "kind": strategy.kind,
+        "baseline": strategy.baseline, "uniforms": strategy.uniforms,
         "exact": integrand.exact, "ns": list(ns), "rmse": rmse.tolist(), "bias": bias.tolist(),
-        "rmse_at_max": float(rmse[-1]), "bias_at_max": float(bias[-1]),
+        "rmse_at_max": float(rmse[-1]), "bias_at_max": float(bias[-1]), "bias_ulps": float(bias[-1]) / ulp,
         # bias over its standard error (spread across keys, ⊕ 4 float32 ulps of the exact value so
         # that zero-variance strategies are judged on bias, not on rounding)
         "bias_z": float(bias[-1] / math.hypot(float(np.std(estimates[:, -1], ddof=1)) / math.sqrt(n_keys),
-                                              4 * 2.0**-23 * abs(integrand.exact))),
-        "per_sample_variance": sum_var / n_keys, "ns_per_sample": seconds_per_sample * 1e9,
-        "time_to_unit_variance": time_to_unit_variance, "efficiency": 1.0 / time_to_unit_variance,
-        "slope": slope, "n_keys": n_keys,
+                                              4 * ulp)),
+        "per_sample_variance": sum_var / n_keys, "n_keys": n_keys,
     }
 
 
-def run_study(quick: bool = True, progress=print, tiny: bool = False) -> list[dict]:
-    """Every (integrand, strategy) row; `quick` uses n up to 2^16 and 16 keys, `tiny` 2^10 and 4."""
+def add_verdicts(row: dict, seconds_per_sample: float, targets=V.TARGETS) -> dict:
+    """Add to a `study_one` row its time per sample and what `verdicts` reads off its curve: "exact",
+    the floor, the slope ± its standard error, and the time to reach each target relative RMSE."""
+    ns, rmse, n_keys = np.array(row["ns"], float), np.array(row["rmse"]), row["n_keys"]
+    seconds = ns * seconds_per_sample
+    exact = V.is_exact(rmse, row["exact"])
+    floor = None if exact else V.floor_index(rmse, n_keys)
+    slope = V.fit_slope(ns, rmse, n_keys, stop=floor, n_min=FIT_FROM_N)
+    times = {}
+    for target in targets:
+        if exact:
+            times[f"{target:g}"] = V.Time(float(seconds[0]), "exact")
+        else:
+            times[f"{target:g}"] = V.time_to_target(seconds, rmse / abs(row["exact"]), target, last=floor,
+                                                    slope=slope.value, n_keys=n_keys)
+    row.update({
+        "ns_per_sample": seconds_per_sample * 1e9, "seconds": seconds.tolist(), "zero_variance": exact,
+        "floor_n": None if floor is None else int(ns[floor]), "slope": slope.value,
+        "slope_stderr": slope.stderr, "slope_points": slope.points,
+        "slope_n_range": [slope.n_first, slope.n_last],
+        "times": {key: dataclasses.asdict(t) for key, t in times.items()},
+    })
+    return row
+
+
+def row_times(row: dict) -> dict[str, V.Time]:
+    """The row's time to each target, as `verdicts.Time` records keyed by the target ("0.01", ...)."""
+    return {key: V.Time(**value) for key, value in row["times"].items()}
+
+
+def study_sizes(quick: bool = True, tiny: bool = False) -> tuple[list[int], int, int]:
+    """(ns, keys, n_time): tiny n up to 2^10 over 4 keys; quick 2^16 over 16; full 2^22 over 32."""
     if tiny:
-        ns, n_keys, n_time = [2**8, 2**10], 4, 2**12
-    elif quick:
-        ns, n_keys, n_time = [2**k for k in range(8, 17, 2)], 16, 2**18
-    else:
-        ns, n_keys, n_time = [2**k for k in range(8, 23, 2)], 32, 2**22
+        return [2**k for k in range(2, 11, 2)], 4, 2**12
+    if quick:
+        return [2**k for k in range(2, 17, 2)], 16, 2**18
+    return [2**k for k in range(2, 23, 2)], 32, 2**22
+
+
+def run_study(quick: bool = True, progress=print, tiny: bool = False) -> list[dict]:
+    """Every (integrand, strategy) row, with its verdicts (see `study_sizes` for the sizes)."""
+    ns, n_keys, n_time = study_sizes(quick, tiny)
     by_name = {i.name: i for i in INTEGRANDS}
-    rows = []
     all_strategies = strategies()
     if tiny:  # a smoke test: every integrand, a few strategies, every code path (random, sobol, MIS)
         keep = {("hemi_cos3", "uniform"), ("hemi_cos3", "cosine+sobol"), ("hemi_cos3", "cosine+stratified"),
                 ("phong100", "uniform"), ("phong100", "mis-power(cosine,phong80)"), ("cap", "uniform"),
                 ("disk_r2", "concentric"), ("triangle_x2", "uniform"), ("free_flight", "exponential1")}
         all_strategies = [s for s in all_strategies if (s.integrand, s.name) in keep]
-    for index, strategy in enumerate(all_strategies):
-        progress(f"[study {index + 1}/{len(all_strategies)}] {strategy.integrand} / {strategy.name}")
-        rows.append(study_one(strategy, by_name[strategy.integrand], ns, n_keys, n_time, seed=index))
-    for row in rows:
-        base = next(r for r in rows if r["integrand"] == row["integrand"] and r["strategy"] in ("uniform", "exponential1", "concentric"))
-        row["relative_efficiency"] = row["efficiency"] / base["efficiency"]
+    rows = []
+    for integrand in dict.fromkeys(s.integrand for s in all_strategies):
+        group = [(index, s) for index, s in enumerate(all_strategies) if s.integrand == integrand]
+        curves = []
+        for index, strategy in group:
+            progress(f"[study {index + 1}/{len(all_strategies)}] {strategy.integrand} / {strategy.name}")
+            curves.append(study_one(strategy, by_name[integrand], ns, n_keys, seed=index))
+        progress(f"[study] timing the {len(group)} strategies of {integrand}, interleaved")
+        runs = {s.name: _timed_run(s, by_name[integrand].f, n_time) for _, s in group}
+        keys = iter(jax.random.split(jax.random.key(99), 1 + 6 * len(runs)))
+        medians = interleaved_medians(runs, keys, repeats=5)
+        rows += [add_verdicts(curve, medians[curve["strategy"]] / n_time) for curve in curves]
     return rows
 
 
+def verdict_rows(rows: list[dict]) -> list[dict]:
+    """One record per (integrand, target): the best strategy (with any tied within 2σ), its time,
+    its speed-up over the integrand's baseline and over the best non-QMC strategy (`verdicts.verdict`)."""
+    out = []
+    for integrand in dict.fromkeys(r["integrand"] for r in rows):
+        group = [r for r in rows if r["integrand"] == integrand]
+        kinds = {r["strategy"]: r["kind"] for r in group}
+        baseline = next(r["strategy"] for r in group if r["baseline"])
+        for target in group[0]["times"]:
+            times = {r["strategy"]: row_times(r)[target] for r in group}
+            v = V.verdict(times, kinds, baseline)
+            out.append({"integrand": integrand, "target": float(target), "baseline": baseline,
+                        "n_max": group[0]["ns"][-1], "n_keys": group[0]["n_keys"], **v})
+    return out
+
+
+def _who(names: list[str], kinds: dict[str, str]) -> str:
+    first = f"{names[0]} ({kinds[names[0]]})"
+    return first if len(names) == 1 else f"{first}; tied within 2σ: {', '.join(names[1:])}"
+
+
+def headline_markdown(rows: list[dict]) -> str:
+    """The report's headline: per integrand and target error, who gets there first and how much sooner."""
+    kinds = {(r["integrand"], r["strategy"]): r["kind"] for r in rows}
+    describe = {i.name: i.description for i in INTEGRANDS}
+    out = ["| integrand | target relative RMSE | fastest to reach it (kind) | its time | speed-up over the baseline "
+           "| best non-QMC (its time) | fastest ÷ best non-QMC |", "|---|---|---|---|---|---|---|"]
+    previous = None
+    for v in verdict_rows(rows):
+        name = v["integrand"]
+        label = f"{name}: {describe.get(name, '')}" if name != previous else ""
+        previous = name
+        k = {s: kinds[(name, s)] for (i, s) in kinds if i == name}
+        if not v["best"]:
+            budget = _power_of_two(v["n_max"])
+            out.append(f"| {label} | {v['target']:g} | not reached within the budget (n ≤ {budget}) "
+                       "| — | — | — | — |")
+            continue
+        time = v["time"]
+        if time.bound == "exact":
+            who, its_time, over_base = "exact: " + ", ".join(v["best"]), "exact at every n", "— (exact)"
+        else:
+            who, its_time = _who(v["best"], k), V.format_time(time)
+            over_base = f"{V.format_ratio(v['over_baseline'])} (over {v['baseline']})"
+        if time.bound != "exact" and k[v["best"][0]] != V.QMC:
+            non_qmc, over_non_qmc = "the fastest itself", "1×"
+        elif not v["best_non_qmc"]:
+            non_qmc, over_non_qmc = "none reaches it", "—"
+        else:
+            nq_time = v["non_qmc_time"]
+            if nq_time.bound == "exact":
+                non_qmc = "exact: " + ", ".join(v["best_non_qmc"])
+            else:
+                non_qmc = f"{_who(v['best_non_qmc'], k)} ({V.format_time(nq_time)})"
+            exact_either = "exact" in (time.bound, nq_time.bound)
+            over_non_qmc = "— (exact)" if exact_either else V.format_ratio(v["over_non_qmc"])
+        out.append(f"| {label} | {v['target']:g} | {who} | {its_time} | {over_base} | {non_qmc} | {over_non_qmc} |")
+    return "\n".join(out) + "\n"
+
+
+def _power_of_two(n: float) -> str:
+    k = math.log2(n)
+    return f"2^{k:.0f}" if k == int(k) else f"{n:g}"
+
+
 def markdown_table(rows: list[dict]) -> str:
-    head = ("| integrand | strategy | RMSE @ n_max | bias (z) | per-sample var | ns/sample | "
-            "time to unit var (s) | efficiency vs uniform | RMSE slope |\n|---|---|---|---|---|---|---|---|---|\n")
-    lines = [f"| {r['integrand']} | {r['strategy']} | {r['rmse_at_max']:.3g} | {r['bias_at_max']:.2g} "
-             f"({r['bias_z']:+.1f}) | {r['per_sample_variance']:.3g} | {r['ns_per_sample']:.2f} | "
-             f"{r['time_to_unit_variance']:.3g} | {r['relative_efficiency']:.3g}× | {r['slope']:.2f} |"
-             for r in rows]
+    targets = list(rows[0]["times"])
+    head = ("| integrand | strategy | kind | RMSE @ n_max | bias (z; float32 ulps) | per-sample var | ns/sample | "
+            "RMSE slope ± se (fitted over n) | floor from n | "
+            + " | ".join(f"time to {t}" for t in targets) + " |\n|" + "---|" * (9 + len(targets)) + "\n")
+    lines = []
+    for r in rows:
+        if r["zero_variance"]:
+            slope, floor = "— (exact)", "exact"
+        else:
+            lo, hi = r["slope_n_range"]
+            slope = ("—" if not math.isfinite(r["slope"]) else
+                     f"{r['slope']:.2f} ± {r['slope_stderr']:.2f} ({_power_of_two(lo)}–{_power_of_two(hi)})")
+            floor = "—" if r["floor_n"] is None else f"**{_power_of_two(r['floor_n'])}**"
+        times = " | ".join(V.format_time(t) for t in row_times(r).values())
+        lines.append(f"| {r['integrand']} | {r['strategy']} | {r['kind']} | {r['rmse_at_max']:.3g} | "
+                     f"{r['bias_at_max']:.2g} ({r['bias_z']:+.1f}; {r['bias_ulps']:+.2g}) | "
+                     f"{r['per_sample_variance']:.3g} | {r['ns_per_sample']:.2f} | {slope} | {floor} | {times} |")
     return head + "\n".join(lines) + "\n"
 
 

@@ -19,7 +19,8 @@ def test_tiny_report_writes_tables_and_plots_with_finite_numbers(tmp_path):
     text = (out / "report.md").read_text()
     for heading in ("## Environment", "## Samplers", "## Which strategy wins", "## Hard cases", "## Plots"):
         assert heading in text, heading
-    for name in ("samplers.csv", "convergence.csv", "hard_cases.csv"):
+    assert "| integrand | target relative RMSE | fastest to reach it (kind) |" in text  # the headline
+    for name in ("samplers.csv", "convergence.csv", "verdicts.csv", "hard_cases.csv"):
         assert (out / name).exists() and (out / name).stat().st_size > 0, name
     # Plots need the `plot` extra; without it the report says how to get them.
     try:
@@ -33,9 +34,12 @@ def test_tiny_report_writes_tables_and_plots_with_finite_numbers(tmp_path):
         rows = list(csv.DictReader(handle))
     assert len(rows) >= 9
     for row in rows:
-        for key in ("rmse_at_max", "ns_per_sample", "efficiency", "per_sample_variance"):
+        for key in ("rmse_at_max", "ns_per_sample", "per_sample_variance"):
             assert math.isfinite(float(row[key])), (row["strategy"], key, row[key])
         assert abs(float(row["bias_z"])) < 6, row  # |z| > 6 would mean a biased strategy
+    with open(out / "verdicts.csv") as handle:  # one verdict per integrand and target error
+        verdicts = list(csv.DictReader(handle))
+    assert len(verdicts) == 3 * len({row["integrand"] for row in rows})
     with open(out / "hard_cases.csv") as handle:
         for row in csv.DictReader(handle):
             assert row["non_finite_values"] == "0" and row["non_finite_gradients"] == "0", row
