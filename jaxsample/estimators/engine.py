@@ -6,7 +6,9 @@ key, n)` (`plain.py`) draws x_i = sampler.warp(u_i) from a uniform source
 returns an `Estimate` with the mean, its standard error and diagnostics.
 
 Streaming: the n samples are processed in chunks of `chunk_size` inside `lax.scan`, so memory does
-not grow with n. The point with global index i is the same whatever the chunk size, the device
+not grow with n. Sample indices have 64 bits (`jaxsample.uniforms.index`): a stream of more than
+2^32 points carries its chunk offsets as two uint32 words; shorter streams keep the uint32
+offsets, and so the very program, of a 32-bit counter. The point with global index i is the same whatever the chunk size, the device
 count or the jit/vmap context (counter-based sources), so the estimate changes only by float
 rounding between chunkings and shardings.
 
@@ -45,6 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.counts import check_count
 from .._core.params import default_float_dtype
 from .._core.pytree import pytree_dataclass
 from .._core import doublefloat
@@ -52,6 +55,7 @@ from .._core.computed_once import computed_once
 from .._core.lanes import lane_map
 from .._core.numerics import safe_div, safe_sqrt
 from ..uniforms import Source, as_source, seed_from_key
+from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, Index, offset_at, token
 from .result import Estimate
 
 __all__ = ["run_stream", "tree_sum", "DEFAULT_CHUNK_SIZE"]
@@ -143,11 +147,13 @@ def _empty_moments(replicates: int, out_shape, dtype) -> _Moments:
     return _Moments(zeros, zeros, scalar, scalar, scalar, jnp.zeros((), dtype))
 
 
-def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
+def _finish(m: _Moments, count: int, replicates: int) -> Estimate:
     # Every mean is formed in double-float (sums and compensations as hi + lo), divided before
     # it is rounded; with replicates the spread is taken from the hi + lo means, whose differences
     # are far below a float32 ulp of the mean once Sobol' points converge.
-    replicate_hi, replicate_lo = doublefloat.divide_by_int((m.sums, m.compensation), n // replicates)
+    replicate_hi, replicate_lo = doublefloat.divide_by_int((m.sums, m.compensation), count // replicates)
+    # n as a float: a Python int beyond 2^31 in array arithmetic overflows JAX's weak int32.
+    n = float(count)
     total = doublefloat.sum_axis0(replicate_hi, leaf=1)
     mean_hi, mean_lo = doublefloat.divide_by_int(
         (total[0], total[1] + jnp.sum(replicate_lo, axis=0)), replicates)
@@ -168,7 +174,7 @@ def _finish(m: _Moments, n: int, replicates: int) -> Estimate:
     variance = jnp.where(finite, variance, jnp.inf)
     stderr = jnp.where(finite, stderr, jnp.inf)
     return Estimate(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
-                    n=n, replicates=replicates)
+                    n=count, replicates=replicates)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -192,13 +198,18 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
             chunk_size: int, out_shape, aligned: int) -> _Moments:
     """Moments of values_fn over the points with global indices [base, base + count).
 
-    `aligned`: every chunk offset is a multiple of it (it lets the sources take fast paths)."""
+    `aligned`: every chunk offset is a multiple of it (it lets the sources take fast paths).
+    Offsets are 64-bit `Index`es when the stream passes 2^32 points (`total` > 2^32); below, they
+    are the plain uint32 offsets of a 32-bit counter (the same program, and the same points)."""
     replicates = source.replicates
+    wide = total > NARROW_LIMIT
 
-    def chunk(offset, size):
-        groups = source.lanes(seed, offset, size, dims, dtype, total=total, aligned=aligned)
+    def chunk(offset: Index, size):
+        # A narrow stream hands the sources a bare uint32 offset, as before indices had 64 bits.
+        at = offset if offset.wide else offset.lo
+        groups = source.lanes(seed, at, size, dims, dtype, total=total, aligned=aligned)
         # The g groups share each generator call: computed in one loop, stored once per chunk.
-        values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], offset)
+        values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], token(offset))
         return _chunk_moments(values, replicates, out_shape)
 
     moments = _empty_moments(replicates, out_shape, dtype)
@@ -207,32 +218,52 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
         chunk_body = jax.checkpoint(lambda offset: chunk(offset, chunk_size))
 
         def body(state, step):
-            offset = base + step * chunk_size
+            offset = offset_at(base, step, chunk_size, wide)
             return _merge(state, chunk_body(offset)), None
 
         moments, _ = jax.lax.scan(body, moments, jnp.arange(steps, dtype=jnp.uint32))
     if tail:
-        moments = _merge(moments, chunk(base + steps * chunk_size, tail))
+        moments = _merge(moments, chunk(offset_at(base, steps, chunk_size, wide), tail))
     return moments
 
 
-def _check_n(owner: str, n, multiple: int) -> int:
-    if not isinstance(n, (int, np.integer)) or n < 2:
-        raise ValueError(f"{owner}: parameter 'n' must be a Python int >= 2; got {n!r}")
+def _check_n(owner: str, n, replicates: int, devices: int, source: Source) -> int:
+    """n as an int: any concrete integer (see `_core.counts`), a multiple of replicates x devices,
+    below 2^64 (sample indices have 64 bits)."""
+    n = check_count(owner, "n", n, minimum=2, maximum=MAX_INDEX)
+    multiple = replicates * devices
     if n % multiple:
-        raise ValueError(f"{owner}: parameter 'n' must be a multiple of {multiple} "
-                         f"(replicates x devices); got {n}")
-    return int(n)
+        parts = [f"{replicates} replicates" if replicates > 1 else None,
+                 f"{devices} devices" if devices > 1 else None]
+        why = " x ".join(p for p in parts if p)
+        advice = f"use n = {n - n % multiple + multiple}"
+        if replicates > 1:
+            divisor = "R" if devices == 1 else f"R x {devices}"
+            advice += (f", or choose the replicate count: uniforms=jaxsample.uniforms."
+                       f"{type(source).__name__}(replicates=R), with {divisor} dividing n")
+        raise ValueError(f"{owner}: parameter 'n' must be a multiple of {multiple} ({why}); got {n}: {advice}")
+    return n
 
 
 def _check_chunk_size(owner: str, chunk_size, replicates: int) -> int:
     if chunk_size is None:
         chunk_size = DEFAULT_CHUNK_SIZE
     step = math.lcm(4, replicates)
-    if not isinstance(chunk_size, (int, np.integer)) or chunk_size < step or chunk_size % step:
-        raise ValueError(f"{owner}: parameter 'chunk_size' must be a positive multiple of {step}; "
-                         f"got {chunk_size!r}")
+    chunk_size = check_count(owner, "chunk_size", chunk_size, minimum=1)
+    if chunk_size < step or chunk_size % step:
+        raise ValueError(f"{owner}: parameter 'chunk_size' must be a positive multiple of {step} "
+                         f"(4 and the source's {replicates} replicates); got {chunk_size!r}")
     return int(chunk_size)
+
+
+_MAX_STEPS = (1 << 31) - 1  # lax.scan counts its steps in int32
+
+
+def _check_steps(owner: str, per_device: int, chunk_size: int) -> None:
+    if per_device // chunk_size > _MAX_STEPS:
+        raise ValueError(f"{owner}: n / chunk_size ({per_device // chunk_size} chunks per device) must be "
+                         f"below 2^31 (the streaming loop counts chunks in int32); raise 'chunk_size' "
+                         f"(now {chunk_size})")
 
 
 def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=None,
@@ -246,8 +277,9 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
     replicates = source.replicates
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     devices = 1 if mesh is None else mesh.size
-    n = _check_n(owner, n, replicates * devices)
+    n = _check_n(owner, n, replicates, devices, source)
     chunk_size = _check_chunk_size(owner, chunk_size, replicates)
+    _check_steps(owner, n // devices, chunk_size)
     seed = seed_from_key(key)
 
     if mesh is None:
@@ -260,21 +292,21 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
 
     def local(seed):
         device = jax.lax.axis_index(axes)
-        base = device.astype(jnp.uint32) * jnp.uint32(per_device)
+        base = offset_at(0, device.astype(jnp.uint32), per_device, n > NARROW_LIMIT)
         m = _stream(values_fn, source, seed, dims, dtype, base, per_device, n, chunk_size,
                     out_shape, math.gcd(per_device, chunk_size))
         # Combine devices: compensated sums are added, M2 merged about the global mean.
         # The per-replicate sums are gathered and added in double-float (a psum would round them).
         sums, low = doublefloat.sum_axis0(jax.lax.all_gather(m.sums, axes), leaf=1)
         low = low + jnp.sum(jax.lax.all_gather(m.compensation, axes), axis=0)
-        local_mean = jnp.sum(m.sums + m.compensation, axis=0) / per_device
-        global_mean = jnp.sum(sums + low, axis=0) / n
+        local_mean = jnp.sum(m.sums + m.compensation, axis=0) / float(per_device)
+        global_mean = jnp.sum(sums + low, axis=0) / float(n)
         shift = local_mean - global_mean
-        m2 = jax.lax.psum(m.m2 + per_device * shift * shift, axes)
+        m2 = jax.lax.psum(m.m2 + float(per_device) * shift * shift, axes)
         # max |Y| is a diagnostic with no derivative (and pmax has no differentiation rule, so
         # without the stop a gradient of a sharded estimate failed).
         return _Moments(sums, low, m2, jax.lax.pmax(jax.lax.stop_gradient(m.max_abs), axes),
-                        jax.lax.psum(m.sum_abs, axes), jnp.asarray(n, dtype))
+                        jax.lax.psum(m.sum_abs, axes), jnp.asarray(float(n), dtype))
 
     from jax.sharding import PartitionSpec
 

@@ -12,7 +12,9 @@ with Sobol' or stratified points it is the spread of the replicate means, as for
 
 `make(params)` returns `(f, sampler)` (or `(g, sampler)`) built from a pytree of float
 parameters, so that a parameter may live in the integrand, the sampler or both. The integrand
-must be scalar-valued (the gradient of a vector would be a Jacobian).
+must return one real scalar per sample (the gradient of a vector, a pytree or a complex value
+would be a Jacobian): a pytree or complex integrand is a TypeError, a non-scalar array a
+ValueError; differentiate one real component per call (`f(w)["a"]`, `f(w).real`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from jax.flatten_util import ravel_pytree
 from ..samplers.base import check_unbatched
 from .._core.params import check_choice
 from .engine import run_stream
+from .integrand import integrand_layout, require_real
 from .plain import broadcast_like, integrand_values
 from .result import Estimate
 from .gradients import _GRADIENTS, _detached_log_pdf, expectation, expectation_values, uniform_dims
@@ -41,6 +44,9 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
     fn, sampler = make(params)
     check_unbatched(sampler, owner)
     dims = sampler.uniform_dims + extra_dims
+    require_real(integrand_layout(fn, sampler, flat.dtype, owner), owner, "make(params)[0]",
+                 "its gradient is an Estimate shaped like params; differentiate one real component per "
+                 "call, e.g. lambda w: f(w)['a'] or lambda w: f(w).real")
     out = jax.eval_shape(lambda u: point_value(fn, sampler, u), jax.ShapeDtypeStruct((dims,), flat.dtype))
     if out.shape != ():
         raise ValueError(f"{owner}: the integrand must return a scalar (one value per sample); got shape "

@@ -33,6 +33,10 @@ Two different questions share the words "gradient of a Monte Carlo estimate" (Mo
    surrogate is g(x̄) + (log p(x̄) - sg(log p(x̄))) · sg(g(x̄) - b), x̄ = sg(T(u; θ)), where sg is
    `stop_gradient`: the second term is exactly 0 in value.
 
+g follows the integrand rule of `integrand.py`: a pytree of real or complex arrays gives the same
+pytree of `Estimate`s (each real component's surrogate is the one above, so a complex leaf's real
+and imaginary parts get their own gradients: differentiate `est.mean.real`, `est.mean.imag`).
+
 The returned stderr is the standard error of the *value*. For the gradient's own variance, take
 per-sample gradients: `jax.vmap(jax.grad(...))` over rows of u of `integrand_values` or
 `expectation_values` (below), whose mean is the gradient of the estimate.
@@ -47,7 +51,8 @@ import jax.numpy as jnp
 
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
-from .plain import broadcast_like, integrand_values, output_shape, over_batch
+from .integrand import IntegrandLayout, integrand_layout
+from .plain import broadcast_like, integrand_values, over_batch
 from .result import Estimate
 
 __all__ = ["expectation", "expectation_values", "integrand_values"]
@@ -89,25 +94,44 @@ def _measure_valued_values(g, sampler, u):
     return gx + tangent * jax.lax.stop_gradient(jnp.asarray(c, gx.dtype) * (gx - gx_product))
 
 
+def _packed(g, layout: IntegrandLayout, dtype):
+    """g with its value packed by the integrand rule: one real vector per sample (g itself for one
+    real array)."""
+    if layout.plain:
+        return g
+    return lambda x: layout.pack(jax.tree_util.tree_map(lambda v: jnp.asarray(v)[None], g(x)), dtype)[0]
+
+
 def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
-                       gradient: str = "pathwise", baseline: Any = None) -> jax.Array:
+                       gradient: str = "pathwise", baseline: Any = None):
     """Per-sample surrogate values for E_{p_θ}[g] from a (count, uniform_dims) block of uniforms.
 
     The value of each row is g(x_i); its derivative is the chosen per-sample gradient estimator:
     ∇(g ∘ T) for "pathwise", ∇g(x̄) + (g(x̄) - b) ∇ log p(x̄) for "score" with a constant
-    baseline b (`baseline`, default 0, broadcast against g's value and held constant). The
-    leave-one-out baseline couples samples, so it exists only in `expectation`.
+    baseline b (`baseline`, default 0, broadcast against g's value and held constant; for a
+    pytree-valued g, a matching pytree or one array broadcast to every leaf). The leave-one-out
+    baseline couples samples, so it exists only in `expectation`. A pytree-valued g gives the
+    same pytree of (count, *leaf shape) arrays.
     """
     check_choice("expectation", "gradient", gradient, _GRADIENTS)
     if gradient != "score" and baseline is not None:
         raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
+    if isinstance(baseline, str):
+        raise ValueError("expectation_values: a string 'baseline' (leave_one_out) needs the whole "
+                         "sample; use expectation")
+    layout = integrand_layout(g, sampler, u.dtype, "expectation_values")
+    if baseline is not None:
+        baseline = layout.pack_constant(baseline, u.dtype)
+    values = _surrogate_values(_packed(g, layout, u.dtype), sampler, u, gradient, baseline)
+    return layout.unpack(values)
+
+
+def _surrogate_values(g, sampler, u, gradient, baseline):
+    """`expectation_values` for a g whose value is one real array (packed)."""
     if gradient == "pathwise":
         return jax.vmap(g)(sampler.warp(u))
     if gradient == "measure_valued":
         return _measure_valued_values(g, sampler, u)
-    if isinstance(baseline, str):
-        raise ValueError("expectation_values: a string 'baseline' (leave_one_out) needs the whole "
-                         "sample; use expectation")
     x = jax.lax.stop_gradient(sampler.warp(u))
     gx = jax.vmap(g)(x)
     log_p = _detached_log_pdf(sampler, x)
@@ -122,7 +146,8 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
     """E_{p_θ}[g] = ∫ g p_θ dμ as the mean of g(x_i), x_i ~ sampler, with a chosen gradient.
 
     Args:
-      g: maps ONE sample (shape `sampler.event_shape`) to a value (any fixed shape); vmapped. It may
+      g: maps ONE sample (shape `sampler.event_shape`) to a value: an array of any fixed shape or
+        a pytree of real or complex arrays (the integrand rule of `integrand.py`); vmapped. It may
         close over θ too: both estimators then add its explicit derivative.
       sampler: any `jaxsample.Sampler`; its parameters are the θ that `jax.grad` sees.
       key, n, uniforms, mesh, chunk_size, dtype: as in `jaxsample.estimate`.
@@ -130,15 +155,17 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         sample) or "measure_valued" (PhongLobe only: the exponent's derivative as a scaled
         difference of two densities, `PhongLobe.measure_valued_pair`; one more uniform per sample).
         All have the value mean(g); see the module docstring for when each is unbiased.
-      baseline: score only. None (no baseline), a constant (array broadcastable to g's value;
-        held constant: a baseline that depends on θ is stopped) or "leave_one_out": sample i uses
+      baseline: score only. None (no baseline), a constant (array broadcastable to g's value, or
+        for a pytree-valued g a matching pytree; held constant: a baseline that depends on θ is
+        stopped) or "leave_one_out": sample i uses
         the mean of the other n - 1 samples, b_i = (S - g_i)/(n - 1), independent of x_i, so the
         gradient stays unbiased. Its gradient is n/(n-1) (mean(g ∇log p) - mean(g) mean(∇log p)),
         computed in the same single streaming pass.
 
     Returns: `Estimate` of E[g] (mean, stderr of the value; see the module docstring for the
-    gradient's variance). Under `jax.grad`, its `mean` differentiates to the chosen estimator.
-    For a sampler with a `batch_shape`, a batched `Estimate` (as `jaxsample.estimate`).
+    gradient's variance), or for a pytree-valued g the same pytree of them. Under `jax.grad`, its
+    `mean` differentiates to the chosen estimator. For a sampler with a `batch_shape`, a batched
+    `Estimate` (as `jaxsample.estimate`).
     """
     check_choice("expectation", "gradient", gradient, _GRADIENTS)
     if sampler.batch_shape:
@@ -151,21 +178,23 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         check_choice("expectation", "baseline", baseline, ("leave_one_out",))
         if gradient != "score":
             raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
-    elif baseline is not None:
-        if gradient != "score":
-            raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
-        baseline = jax.lax.stop_gradient(jnp.asarray(baseline))
     dims = uniform_dims(sampler, gradient)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
-    out_shape = output_shape(g, sampler, dtype)
+    layout = integrand_layout(g, sampler, dtype, "expectation")
+    if baseline is not None and not leave_one_out:
+        if gradient != "score":
+            raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
+        baseline = jax.lax.stop_gradient(layout.pack_constant(baseline, dtype))
+    out_shape = layout.out_shape
+    g = _packed(g, layout, dtype)
     common = dict(uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype,
                   owner="expectation")
 
     if not leave_one_out:
         def values_fn(u):
-            return expectation_values(g, sampler, u, gradient=gradient, baseline=baseline)
+            return _surrogate_values(g, sampler, u, gradient, baseline)
 
-        return run_stream(values_fn, dims, key, n, out_shape=out_shape, **common)
+        return layout.unpack_result(run_stream(values_fn, dims, key, n, out_shape=out_shape, **common))
 
     # Leave-one-out: stream the three means (g, Δ·sg(g), Δ), Δ = log p - sg(log p) (value 0), and
     # combine; the value is mean(g) exactly, the gradient the leave-one-out estimator.
@@ -178,6 +207,8 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
 
     est = run_stream(stacked_fn, dims, key, n, out_shape=(3,) + out_shape, **common)
     mean_g, mean_g_score, mean_score = est.mean[0], est.mean[1], est.mean[2]
-    correction = (n / (n - 1.0)) * (mean_g_score - jax.lax.stop_gradient(mean_g) * mean_score)
-    return Estimate(mean=mean_g + correction, stderr=est.stderr[0], variance=est.variance[0],
-                    max_abs=est.max_abs[0], ess=est.ess[0], n=est.n, replicates=est.replicates)
+    count = float(est.n)
+    correction = (count / (count - 1.0)) * (mean_g_score - jax.lax.stop_gradient(mean_g) * mean_score)
+    return layout.unpack_result(Estimate(mean=mean_g + correction, stderr=est.stderr[0], variance=est.variance[0],
+                                         max_abs=est.max_abs[0], ess=est.ess[0], n=est.n,
+                                         replicates=est.replicates))

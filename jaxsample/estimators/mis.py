@@ -10,12 +10,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.counts import check_count
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
 from ..samplers.base import check_unbatched
 from ..uniforms import as_key
 from .engine import run_stream
-from .plain import _detach, broadcast_like, check_mode, output_shape
+from .integrand import integrand_layout
+from .plain import _detach, broadcast_like, check_mode
 from .result import Estimate
 
 __all__ = ["estimate_mis", "heuristic_weights"]
@@ -66,22 +68,27 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     its own key (split from `key`); techniques are independent, so stderr² = Σ_i stderr_i².
     All samplers must share a domain and measure. `mode="detached"` stops the gradient of the
     sample, its density and every density in the weight together. `mesh`: every technique's
-    samples are split over the mesh's devices, as in `jaxsample.estimate`.
+    samples are split over the mesh's devices, as in `jaxsample.estimate`. `f` may return a pytree
+    of real or complex arrays (the integrand rule of `integrand.py`): the result is then the same
+    pytree of `Estimate`s. Each count is any concrete integer, as `n` of `estimate`.
     """
     check_choice("estimate_mis", "heuristic", heuristic, ("balance", "power"))
     check_mode("estimate_mis", mode)
     samplers = list(samplers)
-    counts = [int(c) for c in counts]
-    if len(samplers) != len(counts) or not samplers:
+    sizes = [check_count("estimate_mis", "counts", c, minimum=2) for c in counts]
+    if len(samplers) != len(sizes) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
     _check_samplers_agree(samplers)
+    # The counts enter the weights as floats: a Python int beyond 2^31 overflows JAX's weak int32.
+    counts = [float(c) for c in sizes]
     exponent = 1 if heuristic == "balance" else beta
     if isinstance(exponent, (int, float, np.integer, np.floating)) and float(exponent).is_integer():
         exponent = int(exponent)  # q ** 2 is a multiplication; q ** 2.0 would be lax.pow (exp, log)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     keys = jax.random.split(as_key(key, "estimate_mis"), len(samplers))
+    layout = integrand_layout(f, samplers[0], dtype, "estimate_mis")
     parts = []
-    for i, (sampler, count) in enumerate(zip(samplers, counts)):
+    for i, (sampler, count) in enumerate(zip(samplers, sizes)):
 
         def values_fn(u, i=i, sampler=sampler):
             x, own_pdf = sampler.warp_with_pdf(u)
@@ -89,14 +96,15 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
             x, pdfs = _detach(mode, x, pdfs)
             weights = heuristic_weights([n_k * p_k for n_k, p_k in zip(counts, pdfs)], exponent)
             weight = weights[i]
-            fx = jax.vmap(f)(x)
+            fx = layout.pack(jax.vmap(f)(x), u.dtype)
             return safe_div(fx * broadcast_like(weight, fx), broadcast_like(pdfs[i], fx))
 
         parts.append(run_stream(values_fn, sampler.uniform_dims, keys[i], count, uniforms=uniforms,
                                 chunk_size=chunk_size, dtype=dtype, owner="estimate_mis", mesh=mesh,
-                                out_shape=output_shape(f, sampler, dtype)))
-    total = sum(counts)
+                                out_shape=layout.out_shape))
+    total = sum(sizes)
     stderr = safe_sqrt(sum(p.stderr * p.stderr for p in parts))
-    return Estimate(mean=sum(p.mean for p in parts), stderr=stderr, variance=total * stderr * stderr,
-                    max_abs=jnp.max(jnp.stack([p.max_abs for p in parts]), axis=0),
-                    ess=sum(p.ess for p in parts), n=total, replicates=parts[0].replicates)
+    est = Estimate(mean=sum(p.mean for p in parts), stderr=stderr, variance=float(total) * stderr * stderr,
+                   max_abs=jnp.max(jnp.stack([p.max_abs for p in parts]), axis=0),
+                   ess=sum(p.ess for p in parts), n=total, replicates=parts[0].replicates)
+    return layout.unpack_result(est)

@@ -1,7 +1,8 @@
 """Plain Monte Carlo: ∫ f dμ as the mean of Y = f(x)/p(x) over samples x of one sampler.
 
 The streaming, accumulation and standard error are the engine's (`engine.py`); `mode` is the
-gradient choice of Zeltner et al. 2021, applied to the sample and its density together.
+gradient choice of Zeltner et al. 2021, applied to the sample and its density together; what f
+may return (a pytree, complex values) is the integrand rule of `integrand.py`.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import jax.numpy as jnp
 from .._core.numerics import safe_div
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
+from .integrand import integrand_layout, layout_of
 from .result import Estimate
 
 __all__ = ["estimate", "integrand_values"]
@@ -63,24 +65,35 @@ def broadcast_like(per_sample, values):
 
 
 def output_shape(f, sampler, dtype) -> tuple[int, ...]:
-    """The shape of f's value at one sample of `sampler` (traced abstractly, nothing computed)."""
-    u = jax.ShapeDtypeStruct((sampler.uniform_dims,), dtype)
-    return tuple(jax.eval_shape(lambda u: f(sampler.warp(u)), u).shape)
+    """The shape of the values the engine averages for f (f's own shape for one real array, the
+    packed vector's for a pytree or complex values: see `integrand.py`); nothing is computed."""
+    return integrand_layout(f, sampler, dtype, "estimate").out_shape
 
 
-def integrand_values(f: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
-                     mode: str = "attached") -> jax.Array:
-    """The per-sample values Y_i = f(x_i)/p(x_i), x_i = sampler.warp(u_i), that `estimate` averages.
-
-    `u` is a (count, uniform_dims) block; the result is (count, *f's output shape), 0 where p = 0.
-    `mode` is applied to the sample and its density together (see `estimate`). Differentiating
-    this function per sample (e.g. `jax.vmap(jax.grad(...))` over rows of u) gives the per-sample
-    gradients whose mean is the gradient of `estimate`, and whose spread is its variance.
-    """
+def packed_values(f, sampler, u: jax.Array, mode: str):
+    """(Y packed by the integrand rule, its layout): Y_i = f(x_i)/p(x_i) for every component of
+    f's value, as one real (count, *out_shape) array (f's own values for one real array)."""
     x, pdf = sampler.warp_with_pdf(u)
     x, pdf = _detach(mode, x, pdf)
     fx = jax.vmap(f)(x)
-    return safe_div(fx, broadcast_like(pdf, fx))
+    layout = layout_of(fx, "integrand_values", lead=1)
+    fx = layout.pack(fx, u.dtype)
+    return safe_div(fx, broadcast_like(pdf, fx)), layout
+
+
+def integrand_values(f: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
+                     mode: str = "attached"):
+    """The per-sample values Y_i = f(x_i)/p(x_i), x_i = sampler.warp(u_i), that `estimate` averages.
+
+    `u` is a (count, uniform_dims) block; the result is (count, *f's output shape), 0 where p = 0;
+    for a pytree-valued f, the same pytree of such arrays (complex leaves stay complex: their real
+    and imaginary parts are divided by p). `mode` is applied to the sample and its density
+    together (see `estimate`). Differentiating this function per sample (e.g.
+    `jax.vmap(jax.grad(...))` over rows of u) gives the per-sample gradients whose mean is the
+    gradient of `estimate`, and whose spread is its variance.
+    """
+    values, layout = packed_values(f, sampler, u, mode)
+    return layout.unpack(values)
 
 
 def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
@@ -89,10 +102,14 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
     """∫ f dμ as the mean of f(x)/p(x) over n samples of `sampler` (μ is the sampler's measure).
 
     Args:
-      f: maps ONE sample (shape `sampler.event_shape`) to a value (any fixed shape); it is vmapped.
+      f: maps ONE sample (shape `sampler.event_shape`) to a value: an array of any fixed shape, or
+        a pytree of arrays (tuple, dict, dataclass ...), real or complex (see below); vmapped.
       sampler: any `jaxsample.Sampler` (a pytree: its parameters may be traced).
       key: a typed `jax.random.key`; consumed once (turned into the source's seed words).
-      n: number of samples, a Python int (a multiple of the source's replicates x devices).
+      n: number of samples: any concrete integer (Python, NumPy, a concrete JAX integer of shape
+        (), an integral float), at least 2, a multiple of the source's replicates x devices; up to
+        2^31 chunks (2^47 with the default chunk size; sample indices have 64 bits). Not a traced
+        value: under `jax.jit` pass it with `static_argnums`/`static_argnames`.
       uniforms: "random" (default, Philox4x32-10), "stratified", "sobol" or a `uniforms.Source`.
       mode: "attached" (pathwise: sample and pdf move with the parameters) or "detached"
         (sample and pdf are constants together; only f carries derivatives).
@@ -101,9 +118,12 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
       chunk_size: samples per streamed chunk (default 2^16; a multiple of 4 and of replicates).
       dtype: float dtype of the uniforms (default float32, float64 under jax_enable_x64).
 
-    Returns: `Estimate`. Y = f/p is 0 where p = 0, with finite gradients there. For a sampler
-      with a `batch_shape`, an `Estimate` whose fields have that leading shape: `jax.vmap` over
-      the members, all drawing with the same key.
+    Returns: `Estimate`, or for a pytree-valued f the same pytree with an `Estimate` at every
+    leaf (`est["a"].mean`). A complex leaf's statistics are complex: real part from the real parts,
+    imaginary part from the imaginary parts (`stderr.real`, `stderr.imag`; see `integrand.py`).
+    Y = f/p is 0 where p = 0, with finite gradients there. For a sampler with a `batch_shape`, an
+    `Estimate` whose fields have that leading shape: `jax.vmap` over the members, all drawing
+    with the same key.
     """
     check_mode("estimate", mode)
     if sampler.batch_shape:
@@ -112,10 +132,11 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
                           sampler, key, "estimate")
     dims = sampler.uniform_dims
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
-    out_shape = output_shape(f, sampler, dtype)
+    layout = integrand_layout(f, sampler, dtype, "estimate")
 
     def values_fn(u):
-        return integrand_values(f, sampler, u, mode=mode)
+        return packed_values(f, sampler, u, mode)[0]
 
-    return run_stream(values_fn, dims, key, n, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
-                      out_shape=out_shape, dtype=dtype)
+    est = run_stream(values_fn, dims, key, n, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
+                     out_shape=layout.out_shape, dtype=dtype)
+    return layout.unpack_result(est)

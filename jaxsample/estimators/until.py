@@ -13,6 +13,14 @@ to be small, so the interval mean ± 1.96 stderr covers the integral slightly le
 `min_n` (default: 8 chunks) keeps that small; the coverage measured over many keys is in
 `tests/test_until.py` and the closing note of issue 15.
 
+Integrands follow the rule of `integrand.py` (a pytree of real or complex arrays gives the same
+pytree of `EstimateUntil`); the stream stops when every component meets the tolerance, a complex
+leaf by the modulus of its stderr against rtol times the modulus of its mean.
+
+Sample indices have 64 bits (`jaxsample.uniforms.index`): past 2^32 points the chunk offsets are
+two-word indices. `n_used` is an int32 array, so max_n must be below 2^31 unless
+`jax_enable_x64` is on (then it is an int64 array and max_n may reach 2^31 chunks).
+
 Not differentiable: reverse mode cannot go through a while loop, and the number of samples is
 itself random. Under `jax.grad` it raises, naming the n to use: differentiate
 `jaxsample.estimate(..., n)` with the `n_used` this returned.
@@ -25,16 +33,18 @@ from typing import Callable
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
+from .._core.counts import check_count
 from ..samplers.base import check_unbatched
 from .._core.doublefloat import _float64_available
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
 from .._core.pytree import pytree_dataclass
 from ..uniforms import Random, Sobol, as_source, seed_from_key
-from .engine import _chunk_moments, _empty_moments, _lane_values, _merge, _Moments
-from .plain import integrand_values
+from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, offset_at
+from .engine import _MAX_STEPS, _chunk_moments, _empty_moments, _lane_values, _merge, _Moments
+from .integrand import integrand_layout
+from .plain import packed_values
 from .result import normal_interval
 
 __all__ = ["EstimateUntil", "estimate_until"]
@@ -44,8 +54,8 @@ __all__ = ["EstimateUntil", "estimate_until"]
 class EstimateUntil:
     """The result of `estimate_until`: an estimate from a data-dependent number of samples.
 
-    `mean`, `stderr`, `variance`, `max_abs`, `ess` as in `Estimate`; `n_used` (an int32 array: it
-    is known only at run time) samples were used; `converged` says whether the tolerance was met
+    `mean`, `stderr`, `variance`, `max_abs`, `ess` as in `Estimate`; `n_used` (an int32 array, int64
+    for max_n >= 2^31 under x64: it is known only at run time) samples were used; `converged` says whether the tolerance was met
     (False: `max_n` was reached first).
     """
 
@@ -65,7 +75,7 @@ class EstimateUntil:
 
 
 def _statistics(m: _Moments, count, replicates: int):
-    """mean, stderr, variance, ess of the moments of `count` points (count traced)."""
+    """mean, stderr, variance, ess of the moments of `count` points (count traced, a float)."""
     count = count.astype(m.m2.dtype)
     if _float64_available() and m.sums.dtype == jnp.float32:
         with jax.enable_x64(True):
@@ -126,23 +136,36 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
         raise ValueError("estimate_until: parameter 'uniforms' must be 'random' or 'sobol' (stratified "
                          "points need the total count in advance)")
     replicates = source.replicates
-    if not isinstance(max_n, (int, np.integer)) or max_n < 2:
-        raise ValueError(f"estimate_until: parameter 'max_n' must be an int >= 2; got {max_n!r}")
-    chunk = int(chunk_size) if chunk_size is not None else min(1 << 16, int(max_n))
+    max_n = check_count("estimate_until", "max_n", max_n, minimum=2, maximum=MAX_INDEX)
+    count_dtype = jnp.int32
+    if max_n > _MAX_STEPS:
+        if not jax.config.jax_enable_x64:
+            raise ValueError(f"estimate_until: parameter 'max_n' must be below 2^31 ({max_n} given): n_used is an "
+                             f"int32 array without jax_enable_x64. Enable x64 (n_used is then int64), or use "
+                             f"jaxsample.estimate(..., n) with a fixed n, which takes n up to 2^64")
+        count_dtype = jnp.int64
+    chunk = (check_count("estimate_until", "chunk_size", chunk_size, minimum=1) if chunk_size is not None
+             else min(1 << 16, max_n))
     step = math.lcm(4, replicates)
     if chunk < step or chunk % step or max_n % chunk:
         raise ValueError(f"estimate_until: 'chunk_size' ({chunk}) must be a positive multiple of {step} "
                          f"that divides 'max_n' ({max_n})")
-    min_n = 8 * chunk if min_n is None else int(min_n)
+    if max_n // chunk > _MAX_STEPS:
+        raise ValueError(f"estimate_until: max_n / chunk_size ({max_n // chunk}) must be below 2^31 (the loop "
+                         f"counts chunks in int32); raise 'chunk_size' (now {chunk})")
+    min_n = 8 * chunk if min_n is None else check_count("estimate_until", "min_n", min_n, minimum=1)
     if min_n % chunk or min_n < chunk:
         raise ValueError(f"estimate_until: parameter 'min_n' must be a positive multiple of chunk_size ({chunk}); got {min_n}")
-    min_n = min(min_n, int(max_n))
+    min_n = min(min_n, max_n)
+    max_steps, min_steps = max_n // chunk, min_n // chunk
+    wide = max_n > NARROW_LIMIT   # offsets past 2^32 are two-word indices
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     check_unbatched(sampler, "estimate_until")
     dims = sampler.uniform_dims
+    layout = integrand_layout(f, sampler, dtype, "estimate_until")
 
     def values_fn(u):
-        return integrand_values(f, sampler, u, mode=mode)
+        return packed_values(f, sampler, u, mode)[0]
 
     point = jax.make_jaxpr(lambda one: values_fn(one[None])[0])(jax.ShapeDtypeStruct((dims,), dtype))
     _refuse_gradients(point.consts)
@@ -150,32 +173,43 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
     seed = seed_from_key(key)
     rtol_, atol_ = float(rtol or 0.0), float(atol or 0.0)
 
-    def chunk_moments(offset):
-        groups = source.lanes(seed, offset, chunk, dims, dtype, total=None, aligned=chunk)
+    def chunk_moments(steps):
+        offset = offset_at(0, steps.astype(jnp.uint32), chunk, wide)
+        at = offset if offset.wide else offset.lo
+        groups = source.lanes(seed, at, chunk, dims, dtype, total=None, aligned=chunk)
         return _chunk_moments([_lane_values(values_fn, lanes) for lanes in groups], replicates, out_shape)
 
-    def at_net(count):
-        # Sobol': test only when every replicate holds a power of two of points.
+    per_chunk = chunk // replicates
+
+    def at_net(steps):
+        # Sobol': test only when every replicate holds a power of two of points, steps x per_chunk:
+        # never if per_chunk is not a power of two, else exactly when the number of steps is one.
         if replicates == 1:
             return jnp.bool_(True)
-        per = count // replicates
+        if per_chunk & (per_chunk - 1):
+            return jnp.bool_(False)
+        per = steps
         return (per & (per - 1)) == 0
 
     def cond(state):
-        moments, count, done = state
-        return (~done) & (count < max_n)
+        moments, steps, done = state
+        return (~done) & (steps < max_steps)
 
     def body(state):
-        moments, count, _ = state
-        moments = _merge(moments, chunk_moments(count.astype(jnp.uint32)))
-        count = count + chunk
-        mean, stderr, _, _ = _statistics(moments, count, replicates)
-        tolerance = jnp.maximum(atol_, rtol_ * jnp.abs(mean))
-        met = jnp.all(stderr <= tolerance) & (count >= min_n) & at_net(count)
-        return moments, count, met
+        moments, steps, _ = state
+        moments = _merge(moments, chunk_moments(steps))
+        steps = steps + 1
+        mean, stderr, _, _ = _statistics(moments, steps.astype(dtype) * float(chunk), replicates)
+        # Sizes compared with the tolerance: |component|, the modulus for both parts of a complex leaf.
+        tolerance = jnp.maximum(atol_, rtol_ * layout.magnitudes(mean))
+        stderr = layout.magnitudes(stderr)
+        met = jnp.all(stderr <= tolerance) & (steps >= min_steps) & at_net(steps)
+        return moments, steps, met
 
     init = (_empty_moments(replicates, out_shape, dtype), jnp.int32(0), jnp.bool_(False))
-    moments, count, converged = jax.lax.while_loop(cond, body, init)
-    mean, stderr, variance, ess = _statistics(moments, count, replicates)
-    return EstimateUntil(mean=mean, stderr=stderr, variance=variance, max_abs=moments.max_abs, ess=ess,
-                         n_used=count, converged=converged, max_n=int(max_n), replicates=replicates)
+    moments, steps, converged = jax.lax.while_loop(cond, body, init)
+    mean, stderr, variance, ess = _statistics(moments, steps.astype(dtype) * float(chunk), replicates)
+    n_used = steps.astype(count_dtype) * jnp.asarray(chunk, count_dtype)   # int64: x64 is on
+    result = EstimateUntil(mean=mean, stderr=stderr, variance=variance, max_abs=moments.max_abs, ess=ess,
+                           n_used=n_used, converged=converged, max_n=max_n, replicates=replicates)
+    return layout.unpack_result(result)

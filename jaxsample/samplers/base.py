@@ -301,6 +301,7 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
     from .._core.computed_once import computed_once
     from .._core.lanes import lane_map
     from ..uniforms import Random, seed_from_key
+    from ..uniforms.index import NARROW_LIMIT, offset_at, token
 
     seed = seed_from_key(key, "sample")
     count = int(np.prod(shape, dtype=np.int64))
@@ -324,7 +325,7 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
                 flat = leaf.reshape(per_group, -1)
                 layout[-1].append((len(columns), flat.shape[1], leaf.shape[1:]))
                 columns.extend(flat[:, c] for c in range(flat.shape[1]))
-        columns = computed_once(columns, offset)
+        columns = computed_once(columns, token(offset))
         results = []
         for k in range(len(leaves[0])):
             parts = [jnp.stack(columns[start:start + width], axis=-1).reshape((per_group,) + event)
@@ -337,6 +338,8 @@ def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
         results = one_chunk(jnp.uint32(0))
     else:
         offsets = jnp.arange(steps, dtype=jnp.uint32) * jnp.uint32(chunk)
+        if count > NARROW_LIMIT:  # past 2^32 points the offsets are 64-bit (two-word) indices
+            offsets = offset_at(0, jnp.arange(steps, dtype=jnp.uint32), chunk, wide=True)
         results = jax.lax.map(one_chunk, offsets)
         results = tuple(r.reshape((steps * chunk,) + r.shape[2:]) for r in results)
     results = [r[:count].reshape(shape + r.shape[1:]) for r in results]

@@ -34,6 +34,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from .._core.counts import check_count
 from .._core.params import check_choice, default_float_dtype
 from ..estimators.engine import run_stream
 from ..estimators.mis import heuristic_weights
@@ -141,7 +142,8 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
         `EnvironmentMap`, or anything with `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)` and
         `radiance_from(point, ω)` in world space).
       key: a typed PRNG key, consumed once.
-      n: radiance evaluations (a Python int; even for "mis", which draws n/2 of each strategy).
+      n: radiance evaluations (any concrete integer, as in `jaxsample.estimate`; even for "mis",
+        which draws n/2 of each strategy).
       strategy: "brdf", "light" or "mis" (default).
       mode: "attached" (default) or "detached"; applies to samples, densities and MIS weights
         together (see the module docstring for which is unbiased for which parameter).
@@ -154,8 +156,9 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     check_choice("shade", "strategy", strategy, STRATEGIES)
     check_mode("shade", mode)
     check_choice("shade", "heuristic", heuristic, ("power", "balance"))
-    if not isinstance(n, int) or n < 2 or (strategy == "mis" and n % 2):
-        raise ValueError(f"shade: parameter 'n' must be a Python int >= 2 (even for 'mis'); got {n!r}")
+    n = check_count("shade", "n", n, minimum=2)
+    if strategy == "mis" and n % 2:
+        raise ValueError(f"shade: parameter 'n' must be even for strategy 'mis' (n/2 of each strategy); got {n}")
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
     shading = _Shading(point, normal, wo, brdf, _as_tuple(lights), mode)

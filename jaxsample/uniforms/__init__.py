@@ -2,7 +2,8 @@
 
 One file per generator: `philox` (Philox4x32-10 and the bits-to-float map), `sobol` (Sobol' points,
 Joe & Kuo direction numbers, Owen scrambling) and `sources` (the `Random`, `Stratified` and `Sobol`
-sources the estimators stream from; its docstring states the streams and the float grid).
+sources the estimators stream from; its docstring states the streams and the float grid), and
+`index`: sample indices have 64 bits, carried as two uint32 words (`index.Index`).
 """
 
 from .philox import SEED_WORDS, as_key, bits_to_unit, philox4x32, random_bits, seed_from_key

@@ -9,6 +9,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .index import Index, as_index, floordiv, index_range
+
 SEED_WORDS = 2
 
 # Philox4x32 constants (Salmon et al. 2011, section 5): multipliers and Weyl key increments.
@@ -98,14 +100,19 @@ def seed_from_key(key: jax.Array, owner: str = "jaxsample") -> jax.Array:
     return jax.random.bits(as_key(key, owner), (SEED_WORDS,), jnp.uint32)
 
 
-def _index_words(offset, count: int):
-    """Global indices offset + [0, count) as uint32 (indices wrap at 2^32 per key)."""
-    return _u32(offset) + jnp.arange(count, dtype=jnp.uint32)
+def _index_words(offset, count: int) -> Index:
+    """Global indices offset + [0, count) as an `Index` (two uint32 words where the window passes
+    2^32; see `jaxsample.uniforms.index`)."""
+    return index_range(offset, count)
 
 
 def _philox_words(seed, block_index, stream: int, word_block: int = 0):
-    return philox4x32((block_index, jnp.zeros_like(block_index) + _u32(word_block),
-                       jnp.zeros_like(block_index) + _u32(stream), jnp.zeros_like(block_index)),
+    """Philox of the counter (i mod 2^32, word_block, stream, i div 2^32) for block index i (a
+    uint32 array or an `Index`): below 2^32 the last word is 0, as it was for 32-bit counters."""
+    block = block_index if isinstance(block_index, Index) else Index(None, _u32(block_index))
+    low = block.lo
+    high = jnp.zeros_like(low) if block.hi is None else block.hi
+    return philox4x32((low, jnp.zeros_like(low) + _u32(word_block), jnp.zeros_like(low) + _u32(stream), high),
                       (seed[..., 0], seed[..., 1]))
 
 
@@ -118,11 +125,12 @@ def random_bits(seed, offset, count: int, dims: int, stream: int = _STREAM_RANDO
     """(count, dims) uint32 words for global sample indices [offset, offset + count).
 
     Layout: with g = 4 // dims samples per Philox block (dims <= 4), sample i takes words
-    (i mod g) * dims ... of the block with counter (i // g, 0, stream, 0); with dims > 4, sample i
-    takes the blocks (i, j, stream, 0), j = 0, 1, ... So sample i depends only on (seed, i).
-    `offset` may be traced. `aligned` promises that offset is a multiple of it (True: of 4; the
-    estimators' chunks), which lets a traced offset skip the spare block and the dynamic slice of
-    the general path.
+    (i mod g) * dims ... of the block with counter (i // g mod 2^32, 0, stream, i // g div 2^32);
+    with dims > 4, sample i takes the blocks (i mod 2^32, j, stream, i div 2^32), j = 0, 1, ...
+    So sample i depends only on (seed, i), for any i below 2^64. `offset` may be traced (a uint32
+    array, or an `Index` past 2^32). `aligned` promises that offset is a multiple of it (True: of
+    4; the estimators' chunks), which lets a traced offset skip the spare block and the dynamic
+    slice of the general path.
     """
     g = _samples_per_block(dims)
     if dims > 4:
@@ -132,19 +140,20 @@ def random_bits(seed, offset, count: int, dims: int, stream: int = _STREAM_RANDO
             words.extend(_philox_words(seed, index, stream, j))
         return jnp.stack(words[:dims], axis=-1)
     static_offset = isinstance(offset, (int, np.integer))
+    start = as_index(offset, count)
     if _alignment(aligned) % g == 0 or (static_offset and offset % g == 0):
         blocks = -(-count // g)
-        first = _u32(offset) // _u32(g) + jnp.arange(blocks, dtype=jnp.uint32)
+        first = index_range(floordiv(start, g), blocks)
         words = jnp.stack(_philox_words(seed, first, stream), axis=-1)  # (blocks, 4)
         samples = words[:, : g * dims].reshape(blocks * g, dims)
         return samples[:count]
-    # A traced or unaligned offset: compute one spare block and cut the window out of it.
-    offset = _u32(offset)
+    # A traced or unaligned offset: compute one spare block and cut the window out of it (g
+    # divides 2^32, so the low word alone gives the offset's position in its block).
     blocks = count // g + 2
-    first = offset // _u32(g) + jnp.arange(blocks, dtype=jnp.uint32)
+    first = index_range(floordiv(start, g), blocks)
     words = jnp.stack(_philox_words(seed, first, stream), axis=-1)
     samples = words[:, : g * dims].reshape(blocks * g, dims)
-    return jax.lax.dynamic_slice_in_dim(samples, (offset % _u32(g)).astype(jnp.int32), count, axis=0)
+    return jax.lax.dynamic_slice_in_dim(samples, (start.lo % _u32(g)).astype(jnp.int32), count, axis=0)
 
 
 def _alignment(aligned) -> int:

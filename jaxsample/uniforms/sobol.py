@@ -6,6 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .index import Index
 from .philox import _u32
 
 # ----------------------------------------------------------------------------------------------
@@ -147,48 +148,78 @@ _JOE_KUO_6_21201 = """\
 """
 
 MAX_SOBOL_DIMS = 128
-_SOBOL_BITS = 32
+_SOBOL_BITS = 32         # bits of a Sobol' fraction (value / 2^32): the precision of every point
+_SOBOL_INDEX_BITS = 64   # bits of a point index: the sequence has 2^64 points per replicate
 _SOBOL_CACHE: dict = {}
 
 
-def sobol_direction_numbers(dims: int) -> np.ndarray:
-    """(dims, 32) uint32: V[j, k] = m_{k+1} 2^(31-k) for dimension j + 1 (Bratley & Fox 1988).
+def _direction_table() -> np.ndarray:
+    """(MAX_SOBOL_DIMS, 64) uint32: column k holds the top 32 bits of the 64-bit direction number
+    V_k = m_(k+1) 2^(63-k) (Bratley & Fox 1988), i.e. m_(k+1) 2^(31-k) for k < 32 and
+    m_(k+1) >> (k - 31) beyond.
 
-    For k > s the recurrence of the primitive polynomial x^s + a_1 x^(s-1) + ... + a_(s-1) x + 1:
-    m_k = 2^s m_(k-s) xor m_(k-s) xor (xor over i = 1..s-1 of 2^i a_i m_(k-i)).
+    The m_k come from the primitive polynomial x^s + a_1 x^(s-1) + ... + a_(s-1) x + 1 of each
+    dimension, for k > s by the recurrence
+    m_k = 2^s m_(k-s) xor m_(k-s) xor (xor over i = 1..s-1 of 2^i a_i m_(k-i)) (Joe & Kuo 2008),
+    in Python integers. Since xor acts bit by bit, the top 32 bits of the 64-bit point (the only
+    ones a 32-bit fraction keeps) are the xor of these columns over the set bits of the index: so
+    the points with indices below 2^32 are exactly those of 32-bit direction numbers, and an index
+    of up to 64 bits continues the same sequence.
     """
-    if not 1 <= dims <= MAX_SOBOL_DIMS:
-        raise ValueError(f"Sobol: 'dims' must be in [1, {MAX_SOBOL_DIMS}]; got {dims}")
     if "table" not in _SOBOL_CACHE:
-        table = np.zeros((MAX_SOBOL_DIMS, _SOBOL_BITS), dtype=np.uint64)
-        table[0] = [1 << (31 - k) for k in range(_SOBOL_BITS)]
+        bits = _SOBOL_INDEX_BITS
+        rows = [[1 << (bits - 1 - k) for k in range(bits)]]   # dimension 1: van der Corput, m_k = 1
         for line in _JOE_KUO_6_21201.strip().splitlines():
             d, s, a, *m_init = (int(v) for v in line.split())
             m = list(m_init)
-            for k in range(s, _SOBOL_BITS):
+            for k in range(s, bits):
                 value = m[k - s] ^ (m[k - s] << s)
                 for i in range(1, s):
                     if (a >> (s - 1 - i)) & 1:
                         value ^= m[k - i] << i
                 m.append(value)
-            table[d - 1] = [m[k] << (31 - k) for k in range(_SOBOL_BITS)]
-        _SOBOL_CACHE["table"] = table.astype(np.uint32)
-    return _SOBOL_CACHE["table"][:dims]
+            rows.append([m[k] << (bits - 1 - k) for k in range(bits)])
+        _SOBOL_CACHE["table"] = (np.array(rows, dtype=np.uint64) >> np.uint64(32)).astype(np.uint32)
+    return _SOBOL_CACHE["table"]
 
 
-def sobol_points(index: jax.Array, dims: int, index_bits: int = _SOBOL_BITS) -> jax.Array:
+def sobol_direction_numbers(dims: int, index_bits: int = _SOBOL_BITS) -> np.ndarray:
+    """(dims, index_bits) uint32: V[j, k] = the top 32 bits of m_(k+1) 2^(63-k) for dimension j + 1,
+    which is m_(k+1) 2^(31-k) for k < 32 (the classical 32-bit table, the default) and
+    m_(k+1) >> (k - 31) for the index bits beyond (up to 64); see `_direction_table`.
+    """
+    if not 1 <= dims <= MAX_SOBOL_DIMS:
+        raise ValueError(f"Sobol: 'dims' must be in [1, {MAX_SOBOL_DIMS}]; got {dims}")
+    if not 1 <= index_bits <= _SOBOL_INDEX_BITS:
+        raise ValueError(f"Sobol: 'index_bits' must be in [1, {_SOBOL_INDEX_BITS}]; got {index_bits}")
+    return _direction_table()[:dims, :index_bits]
+
+
+def sobol_points(index, dims: int, index_bits: int | None = None) -> jax.Array:
     """Unscrambled Sobol' points as uint32 fractions (value / 2^32), shape index.shape + (dims,).
 
     Natural (not Gray-code) order: point i is the xor of V[:, k] over the set bits k of i, so every
-    prefix of length 2^m is the same (0, m, s)-net the Gray-code order visits. Only the low
-    `index_bits` bits of the index are read (a static bound: fewer xors for short sequences).
+    prefix of length 2^m is the same (0, m, s)-net the Gray-code order visits. `index` is a uint32
+    array or a 64-bit `uniforms.index.Index` (two words). Only the low `index_bits` bits of the
+    index are read (a static bound: fewer xors for short sequences; default 32 for a uint32 index
+    or a narrow `Index`, 64 for a wide one).
+
+    Beyond 2^32 points a coordinate, which has 32 bits, cannot tell every point apart: in
+    dimension 1 (van der Corput, V_k = 2^-(k+1)) points i and i + 2^32 share their 32-bit
+    fraction; the higher dimensions' columns k >= 32 are not zero, so those points differ there.
     """
-    directions = jnp.asarray(sobol_direction_numbers(dims))
-    index = _u32(index)[..., None]
-    result = jnp.zeros(index.shape[:-1] + (dims,), dtype=jnp.uint32)
-    for k in range(index_bits):
-        bit = (index >> _u32(k)) & _u32(1)
-        result = result ^ ((_u32(0) - bit) & directions[:, k])
+    if not isinstance(index, Index):
+        index = Index(None, _u32(index))
+    if index_bits is None:
+        index_bits = _SOBOL_INDEX_BITS if index.wide else _SOBOL_BITS
+    directions = jnp.asarray(sobol_direction_numbers(dims, index_bits))
+    words = [(index.lo, 0)] + ([(index.hi, 32)] if index.wide else [])
+    result = jnp.zeros(index.lo.shape + (dims,), dtype=jnp.uint32)
+    for word, first in words:
+        word = word[..., None]
+        for k in range(first, min(first + 32, index_bits)):
+            bit = (word >> _u32(k - first)) & _u32(1)
+            result = result ^ ((_u32(0) - bit) & directions[:, k])
     return result
 
 

@@ -33,16 +33,18 @@ Keys: the user's typed `jax.random.key` is turned into `SEED_WORDS` uint32 words
 from __future__ import annotations
 
 import functools
+import math
 from typing import Union
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .index import Index, as_index, divmod_index, floordiv, index_range, index_value, less_than
 from .philox import (_STREAM_JITTER, _alignment, _STREAM_RANDOM, _STREAM_SCRAMBLE, _index_words, _philox_words,
                      _samples_per_block, _u32, bits_to_unit, philox4x32, random_bits, seed_from_key)
-from .sobol import (_SOBOL_BITS, MAX_SOBOL_DIMS, _reverse_bits, _scramble_reversed, _sobol_low_table,
-                    owen_scramble, sobol_points)
+from .sobol import (_SOBOL_BITS, _SOBOL_INDEX_BITS, MAX_SOBOL_DIMS, _reverse_bits, _scramble_reversed,
+                    _sobol_low_table, owen_scramble, sobol_points)
 
 
 class Source:
@@ -55,6 +57,11 @@ class Source:
     (needed where the construction depends on it, as stratification does). `aligned` is a promise
     about a traced offset: it is a multiple of this integer (True means 4), so a source may take a
     faster path that gives the same points.
+
+    Offsets: a Python or NumPy integer (any index below 2^64), a uint32 array (a traced offset of
+    a window that stays below 2^32: what the estimators pass for n <= 2^32, as before indices had
+    64 bits) or an `index.Index` (two uint32 words: the estimators' offsets for n > 2^32). A
+    subclass handles all three by reading them with `index.as_index(offset, count)`.
     """
 
     replicates: int = 1
@@ -105,14 +112,15 @@ class Random(Source):
         if count % g or _alignment(aligned) % g:
             return super().lanes(seed, offset, count, dims, dtype, total, aligned)
         # Point offset + g b + q takes words q dims ... (q + 1) dims - 1 of block offset / g + b.
-        first = _u32(offset) // _u32(g) + jnp.arange(count // g, dtype=jnp.uint32)
+        first = index_range(floordiv(as_index(offset, count), g), count // g)
         words = _philox_words(seed, first, _STREAM_RANDOM)
         return tuple(tuple(bits_to_unit(words[q * dims + j], dtype) for j in range(dims)) for q in range(g))
 
 
 def _check_replicates(owner: str, replicates) -> int:
-    if not isinstance(replicates, (int, np.integer)) or replicates < 2:
-        raise ValueError(f"{owner}: parameter 'replicates' must be an integer >= 2; got {replicates!r}")
+    if (not isinstance(replicates, (int, np.integer)) or isinstance(replicates, (bool, np.bool_))
+            or not 2 <= replicates < 1 << 32):
+        raise ValueError(f"{owner}: parameter 'replicates' must be an integer in [2, 2^32); got {replicates!r}")
     return int(replicates)
 
 
@@ -140,7 +148,8 @@ class Stratified(Source):
         if total is None:
             raise ValueError("Stratified: 'total' (the number of points of the whole stream) is required")
         if total % self.replicates:
-            raise ValueError(f"Stratified: total={total} must be a multiple of replicates={self.replicates}")
+            raise ValueError(f"Stratified: total={total} must be a multiple of replicates={self.replicates}; "
+                             f"change the count, or the replicate count with Stratified(replicates=...)")
         return total // self.replicates
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
@@ -154,8 +163,11 @@ class Stratified(Source):
         `Source.lanes`), so that the estimators compute each block once."""
         per_replicate = self._per_replicate(total)
         g = _samples_per_block(dims)
-        if dims > 4 or count % g or _alignment(aligned) % g or self.replicates % g:
+        start = as_index(offset, count)
+        if dims > 4 or count % g or _alignment(aligned) % g or self.replicates % g or start.wide:
+            # (A window past 2^32 takes the general path: `block` handles two-word indices.)
             return super().lanes(seed, offset, count, dims, dtype, total, aligned)
+        offset = start.lo
         blocks = jnp.arange(count // g, dtype=jnp.uint32)
         words = _philox_words(seed, _u32(offset) // _u32(g) + blocks, _STREAM_JITTER)
         return tuple(self._place([bits_to_unit(words[q * dims + j], dtype) for j in range(dims)],
@@ -163,19 +175,21 @@ class Stratified(Source):
                      for q in range(g))
 
     def _place(self, jitter, index, per_replicate: int, dtype):
-        """Coordinates (a tuple) of the points with global indices `index` (uint32), given
-        their jitter coordinates in (0, 1)."""
-        index = index // _u32(self.replicates)
+        """Coordinates (a tuple) of the points with global indices `index` (a uint32 array or an
+        `Index`), given their jitter coordinates in (0, 1)."""
+        point = floordiv(index if isinstance(index, Index) else Index(None, _u32(index)), self.replicates)
         top = np.nextafter(np.array(1.0, dtype), np.array(0.0, dtype))
         if len(jitter) == 1:
-            cell = index.astype(jnp.int32).astype(dtype)
-            return (jnp.minimum((cell + jitter[0]) / per_replicate, top),)
-        side = int(np.floor(np.sqrt(per_replicate)))
-        while (side + 1) * (side + 1) <= per_replicate:
-            side += 1
-        in_grid = index < _u32(side * side)
-        cells = ((index % _u32(side)), (index // _u32(side)))
-        first_two = tuple(jnp.where(in_grid, jnp.minimum((c.astype(jnp.int32).astype(dtype) + j) / side, top), j)
+            cell = index_value(point, dtype)
+            return (jnp.minimum((cell + jitter[0]) / float(per_replicate), top),)
+        side = math.isqrt(per_replicate)
+        in_grid = less_than(point, side * side)
+        row, column = divmod_index(point, side)
+        # column < side: below 2^16 in a narrow stream, where the int32 conversion (one vector
+        # instruction) is exact; below 2^32 in a wide one, converted from uint32.
+        cells = (column.astype(jnp.int32).astype(dtype) if not point.wide else column.astype(dtype),
+                 index_value(row, dtype))
+        first_two = tuple(jnp.where(in_grid, jnp.minimum((c + j) / float(side), top), j)
                           for c, j in zip(cells, jitter[:2]))
         return first_two + tuple(jitter[2:])
 
@@ -190,6 +204,12 @@ class Sobol(Source):
     are independent, so their spread gives an honest standard error. Convergence is best when
     total / R is a power of two. Only 32 bits of the scrambled fraction exist; float32 keeps 23
     (midpoint of the cell, as for `Random`).
+
+    Point indices have 64 bits (`sobol.sobol_direction_numbers`: Joe & Kuo's recurrence carried to
+    64 index bits), so a stream may have up to 2^64 points; the first 2^32 of each replicate are
+    those of the classical 32-bit generator. Past 2^32 points per replicate the 32-bit fractions
+    repeat in dimension 1 (points i and i + 2^32 share theirs; see `sobol_points`), so more
+    points then mostly serve the other dimensions: prefer more replicates (`replicates=`).
     """
 
     name = "sobol"
@@ -209,12 +229,12 @@ class Sobol(Source):
         if dims > MAX_SOBOL_DIMS:
             raise ValueError(f"Sobol: at most {MAX_SOBOL_DIMS} dimensions; got {dims}")
         replicates = self.replicates
-        index_bits = _SOBOL_BITS
-        if total is not None:
-            index_bits = max(1, int(-(-total // replicates) - 1).bit_length())
         glob = _index_words(offset, count)
-        point = glob // _u32(replicates)
-        replicate = (glob % _u32(replicates)).astype(jnp.int32)
+        index_bits = _SOBOL_INDEX_BITS if glob.wide else _SOBOL_BITS
+        if total is not None:
+            index_bits = min(index_bits, max(1, int(-(-total // replicates) - 1).bit_length()))
+        point, replicate = divmod_index(glob, replicates)
+        replicate = replicate.astype(jnp.int32)
         seeds = self.scramble_seeds(seed, dims)[replicate]  # (count, dims)
         fractions = owen_scramble(sobol_points(point, dims, index_bits), seeds)
         return bits_to_unit(fractions, dtype)
@@ -235,7 +255,7 @@ class Sobol(Source):
         if (dims > MAX_SOBOL_DIMS or count % replicates or per == 0
                 or _alignment(aligned) % (replicates << bits)):
             return super().lanes(seed, offset, count, dims, dtype, total, aligned)
-        first = _u32(offset) // _u32(replicates)
+        first = floordiv(as_index(offset, count), replicates)
         high = _reverse_bits(sobol_points(first, dims))  # (dims,)
         table = _sobol_low_table(bits, dims)[:per]        # (per, dims), NumPy constant
         seeds = self.scramble_seeds(seed, dims)           # (R, dims)
@@ -269,13 +289,15 @@ def uniform_block(uniforms: SourceLike, key: jax.Array, offset, count: int, dims
     """Points with global indices [offset, offset + count) of the stream `uniforms` draws with `key`.
 
     Calling it on consecutive windows gives exactly the points of one call on their union.
+    `offset` is any index below 2^64 - count (a Python int, a traced integer below 2^32, or an
+    `index.Index` of two uint32 words).
     `key` is a JAX key (`as_key`'s rule: typed, or a legacy uint32 key); `total` is the number
     of points of the whole stream (required for "stratified", and it bounds the Sobol' index).
     """
     source = as_source(uniforms)
     seed = seed_from_key(key, "uniform_block")
     dtype = jnp.zeros(()).dtype if dtype is None else jnp.dtype(dtype)
-    return _block_jit(source, seed, _u32(offset), int(count), int(dims), dtype, total)
+    return _block_jit(source, seed, as_index(offset, int(count)), int(count), int(dims), dtype, total)
 
 
 @functools.partial(jax.jit, static_argnums=(0, 3, 4, 5, 6))
