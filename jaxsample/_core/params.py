@@ -74,7 +74,7 @@ def check_number(owner: str, name: str, value: Any) -> None:
         return
     if isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{owner}: parameter '{name}' must be a number or an array of numbers; got the bool {value!r}")
-    if isinstance(value, (int, float, np.number, jax.Array)):
+    if isinstance(value, (int, float, np.integer, np.floating)):
         return
     try:
         kind = np.asarray(value).dtype.kind
@@ -83,6 +83,17 @@ def check_number(owner: str, name: str, value: Any) -> None:
     if kind not in "iuf":
         raise TypeError(f"{owner}: parameter '{name}' must be a number or an array of numbers; "
                         f"got {type(value).__name__} {value!r}")
+
+
+def as_parameter(value: Any) -> Any:
+    """A list or tuple of numbers as an array of the default float dtype (one leaf, which may carry
+    a batch), anything else unchanged; what `check_number` refuses is left for it to name."""
+    if isinstance(value, (list, tuple)):
+        try:
+            return jnp.asarray(np.asarray(value, dtype=np.float64), default_float_dtype())
+        except (TypeError, ValueError):
+            return value
+    return value
 
 
 def in_range(value: Any, low: float = -np.inf, high: float = np.inf, *, low_open: bool = False,

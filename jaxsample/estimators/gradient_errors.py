@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
-from ..samplers.base import check_unbatched
+from ..samplers.base import check_unbatched, checked
 from .._core.params import check_choice
 from .engine import run_stream
 from .integrand import integrand_layout, require_real
@@ -43,6 +43,7 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
         raise TypeError(f"{owner}: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
     fn, sampler = make(params)
     check_unbatched(sampler, owner)
+    sampler = checked(sampler)
     dims = sampler.uniform_dims + extra_dims
     require_real(integrand_layout(fn, sampler, flat.dtype, owner), owner, "make(params)[0]",
                  "its gradient is an Estimate shaped like params; differentiate one real component per "

@@ -49,6 +49,7 @@ from typing import Any, Callable
 import jax
 import jax.numpy as jnp
 
+from ..samplers.base import checked
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
 from .integrand import IntegrandLayout, integrand_layout
@@ -178,6 +179,7 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         check_choice("expectation", "baseline", baseline, ("leave_one_out",))
         if gradient != "score":
             raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
+    sampler = checked(sampler)  # the invalid-parameter rule, once, outside the loop
     dims = uniform_dims(sampler, gradient)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     layout = integrand_layout(g, sampler, dtype, "expectation")

@@ -13,7 +13,7 @@ import numpy as np
 from .._core.counts import check_count
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
-from ..samplers.base import check_unbatched
+from ..samplers.base import check_unbatched, checked
 from ..uniforms import as_key
 from .engine import run_stream
 from .integrand import integrand_layout
@@ -79,6 +79,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     if len(samplers) != len(sizes) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
     _check_samplers_agree(samplers)
+    samplers = [checked(s) for s in samplers]
     # The counts enter the weights as floats: a Python int beyond 2^31 overflows JAX's weak int32.
     counts = [float(c) for c in sizes]
     exponent = 1 if heuristic == "balance" else beta

@@ -12,6 +12,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
+from ..samplers.base import checked
 from .._core.numerics import safe_div
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
@@ -105,7 +106,8 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
       f: maps ONE sample (shape `sampler.event_shape`) to a value: an array of any fixed shape, or
         a pytree of arrays (tuple, dict, dataclass ...), real or complex (see below); vmapped.
       sampler: any `jaxsample.Sampler` (a pytree: its parameters may be traced).
-      key: a typed `jax.random.key`; consumed once (turned into the source's seed words).
+      key: a JAX key (`jax.random.key`, or a legacy `jax.random.PRNGKey`: the same stream); consumed
+        once (turned into the source's seed words).
       n: number of samples: any concrete integer (Python, NumPy, a concrete JAX integer of shape
         (), an integral float), at least 2, a multiple of the source's replicates x devices; up to
         2^31 chunks (2^47 with the default chunk size; sample indices have 64 bits). Not a traced
@@ -130,6 +132,7 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
         return over_batch(lambda member, k: estimate(f, member, k, n, uniforms=uniforms, mode=mode, mesh=mesh,
                                                      chunk_size=chunk_size, dtype=dtype),
                           sampler, key, "estimate")
+    sampler = checked(sampler)  # the invalid-parameter rule, once, outside the loop
     dims = sampler.uniform_dims
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     layout = integrand_layout(f, sampler, dtype, "estimate")

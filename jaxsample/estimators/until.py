@@ -35,7 +35,7 @@ import jax
 import jax.numpy as jnp
 
 from .._core.counts import check_count
-from ..samplers.base import check_unbatched
+from ..samplers.base import check_unbatched, checked
 from .._core.doublefloat import _float64_available
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
@@ -161,6 +161,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
     wide = max_n > NARROW_LIMIT   # offsets past 2^32 are two-word indices
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     check_unbatched(sampler, "estimate_until")
+    sampler = checked(sampler)
     dims = sampler.uniform_dims
     layout = integrand_layout(f, sampler, dtype, "estimate_until")
 

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from .._core.counts import check_count
-from ..samplers.base import check_unbatched
+from ..samplers.base import check_unbatched, checked
 from .._core.params import default_float_dtype
 from .engine import run_stream
 from .integrand import integrand_layout, require_real_scalar
@@ -40,6 +40,7 @@ def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, ow
     Cov(Y_k, Z) for every component k; returns (est, var_y, var_z, cov, f's layout)."""
     check_mode(owner, mode)
     check_unbatched(sampler, owner)
+    sampler = checked(sampler)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     layout = integrand_layout(f, sampler, dtype, owner)
     require_real_scalar(integrand_layout(h, sampler, dtype, owner), owner, h_name, why)
@@ -96,6 +97,7 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
     """
     check_mode("estimate_antithetic", mode)
     check_unbatched(sampler, "estimate_antithetic")
+    sampler = checked(sampler)
     n = check_count("estimate_antithetic", "n", n, minimum=2)
     if n % 2:
         raise ValueError(f"estimate_antithetic: parameter 'n' must be even (n/2 antithetic pairs); got {n}")

@@ -10,7 +10,9 @@ bijection, its inverse.
 from __future__ import annotations
 
 import functools
+import inspect
 import operator
+import weakref
 from typing import ClassVar
 
 import jax
@@ -46,9 +48,11 @@ class Sampler(Pytree):
     Invalid parameters (the one rule, docs/design.md "Invalid input"): a concrete parameter outside
     its range raises `ValueError` naming it and the range at construction (a non-number raises
     `TypeError`); a traced one cannot raise, so `_parameters_valid()` (each class states its
-    ranges) poisons the parameters with NaN before any point method runs: values, densities and
-    gradients are then NaN, and estimators report a NaN mean with an infinite stderr, never a
-    finite number.
+    ranges) poisons the parameters with NaN before any point method runs: float values, densities
+    and gradients are then NaN (integer outputs, such as `Discrete`'s indices, cannot be; their
+    densities are), and estimators report a NaN mean with an infinite stderr, never a finite
+    number. The same holds for concrete parameters that never met a constructor (a sampler rebuilt
+    by `jax.tree_util.tree_map`, an optimizer's step). Loops check once, outside (`checked`).
     """
 
     uniform_dims: ClassVar[int]
@@ -70,6 +74,10 @@ class Sampler(Pytree):
             method = cls.__dict__.get(name)
             if callable(method) and not getattr(method, "_batched", False):
                 setattr(cls, name, _batched(method, name))
+        for name in _CHECKED_HELPERS:
+            method = cls.__dict__.get(name)
+            if callable(method) and not getattr(method, "_batched", False):
+                setattr(cls, name, _checking(method))
 
     def _parameters_valid(self):
         """A boolean (scalar) array: whether the parameters are in range; None if always valid."""
@@ -134,6 +142,8 @@ class Sampler(Pytree):
 
 
 _POINT_METHODS = ("warp", "warp_with_pdf", "pdf", "log_pdf", "inverse")
+# Per-point helpers some samplers add (one distribution each): they obey the invalid-parameter rule.
+_CHECKED_HELPERS = ("measure_valued_pair", "warp_with_info", "warp_with_remainder")
 
 
 def _one_key(key, seed, owner):
@@ -145,6 +155,8 @@ def _one_key(key, seed, owner):
 
 
 def _one_shape(sample_shape, shape):
+    if shape is not None and sample_shape not in ((), None):
+        raise TypeError("sample: give the shape once, as 'sample_shape' or as its former name 'shape'")
     return sample_shape if shape is None else shape
 
 
@@ -189,20 +201,35 @@ def check_unbatched(sampler, owner: str) -> None:
                          "(jax.vmap over the batch, or use `estimate`, which maps over it)")
 
 
+def _samplers_in(obj) -> list:
+    """`obj` and every sampler nested in its attributes (an Oriented's base, a Mixture's components)."""
+    found = [obj] if isinstance(obj, Sampler) else []
+    names, _ = tree_fields(obj)
+    for name in names:
+        for item in jax.tree_util.tree_leaves(getattr(obj, name), is_leaf=lambda v: isinstance(v, Pytree)):
+            if isinstance(item, Pytree):
+                found.extend(_samplers_in(item))
+    return found
+
+
 def _poisoned(sampler):
-    """`sampler` with every float parameter made NaN where `_parameters_valid()` is False.
+    """`sampler` with every float parameter made NaN where it, or a sampler nested in it, has
+    invalid parameters (`_parameters_valid()` False).
 
     Each parameter becomes θ·(1 + e) with e = 0 (valid: θ exactly, derivative 1) or NaN (invalid):
     the values are NaN, and so is the derivative of every entry of θ, also of the entries a
-    gather never reads (their cotangent 0 times NaN), so no gradient comes out finite."""
-    if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(sampler)):
-        return sampler  # concrete parameters were checked at construction (ValueError)
-    valid = sampler._parameters_valid()
-    if valid is None:
-        return sampler
-    if not isinstance(valid, jax.core.Tracer) and bool(np.all(np.asarray(valid))):
-        return sampler
-    poison = jnp.where(jnp.all(valid), 0.0, jnp.nan)
+    gather never reads (their cotangent 0 times NaN), so no gradient comes out finite. Concrete
+    parameters are checked too (a sampler rebuilt by `tree_map` never ran its constructor's check).
+    """
+    checks = [v for s in _samplers_in(sampler) if (v := s._parameters_valid()) is not None]
+    traced = [v for v in checks if isinstance(v, jax.core.Tracer)]
+    if all(bool(np.all(np.asarray(v))) for v in checks if not isinstance(v, jax.core.Tracer)):
+        if not traced:
+            return sampler
+        valid = functools.reduce(jnp.logical_and, [jnp.all(v) for v in traced])
+    else:
+        valid = False
+    poison = jnp.where(valid, 0.0, jnp.nan)
 
     def add(leaf):
         leaf_dtype = jnp.result_type(leaf)
@@ -213,14 +240,51 @@ def _poisoned(sampler):
     return jax.tree_util.tree_map(add, sampler)
 
 
+# Samplers whose parameters have been checked (and poisoned where invalid), by id, each with a
+# weak reference that proves the id still names that object. A checked sampler is immutable, so
+# it never needs checking again: nested samplers of a checked one skip their own check, and a
+# loop (`sample`, the estimators) checks once, outside, by calling `checked` before it.
+_CHECKED: dict[int, weakref.ref] = {}
+
+
+def _forget(ident: int):
+    return lambda _ref: _CHECKED.pop(ident, None)
+
+
+def checked(sampler):
+    """`sampler` with the invalid-parameter rule applied (`_poisoned`), remembered as checked."""
+    ref = _CHECKED.get(id(sampler))
+    if ref is not None and ref() is sampler:
+        return sampler
+    result = _poisoned(sampler)
+    for s in _samplers_in(result):
+        try:
+            _CHECKED[id(s)] = weakref.ref(s, _forget(id(s)))
+        except TypeError:  # a class with __slots__ and no weak references: checked per call
+            pass
+    return result
+
+
+def _point_argument(method) -> str:
+    """The name of a point method's point argument (`u` or `x`), for calls by keyword."""
+    return list(inspect.signature(method).parameters)[1]
+
+
 def _batched(method, name: str):
     takes_u = name in ("warp", "warp_with_pdf")
+    argument = _point_argument(method)
 
     @functools.wraps(method)
-    def point_method(self, point, *args, **kwargs):
+    def point_method(self, *args, **kwargs):
+        if args:
+            point, args = args[0], args[1:]
+        elif argument in kwargs:
+            point = kwargs.pop(argument)
+        else:
+            raise TypeError(f"{type(self).__name__}.{name}: missing the point argument '{argument}'")
         batch = self.batch_shape
         if not batch:
-            return method(_poisoned(self), point, *args, **kwargs)
+            return method(checked(self), point, *args, **kwargs)
         if not self.batchable:
             raise ValueError(f"{type(self).__name__}: cannot be batched (its tables are built per distribution); "
                              f"got parameters with batch_shape {batch}; build one per member")
@@ -237,6 +301,18 @@ def _batched(method, name: str):
 
     point_method._batched = True
     return point_method
+
+
+def _checking(method):
+    """A per-point helper of one distribution (`measure_valued_pair`, `warp_with_info`, ...): not
+    batched, but it obeys the invalid-parameter rule as the point methods do."""
+
+    @functools.wraps(method)
+    def checked_method(self, *args, **kwargs):
+        return method(checked(self), *args, **kwargs)
+
+    checked_method._batched = True
+    return checked_method
 
 
 for _name in _POINT_METHODS:
@@ -288,6 +364,11 @@ _DRAW_CHUNK = 1 << 16
 
 @functools.partial(jax.jit, static_argnums=(2, 3, 4))
 def _draw(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
+    """`_draw_unchecked` with the sampler's parameters checked once, outside the chunk loop."""
+    return _draw_unchecked(checked(sampler), key, shape, dtype, method)
+
+
+def _draw_unchecked(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: str):
     """`sampler.<method>` (warp, warp_with_pdf, ...) of the stream's first points, shaped
     `shape + event`: `sample` and `sample_with_pdf` as one compiled program, whatever the sampler.
 

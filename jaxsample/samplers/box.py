@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_number, concrete_value
+from .._core.params import as_parameter, check_number, concrete_value
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Box
 
@@ -30,6 +30,8 @@ class UniformBox(Sampler):
     parameter_ranks = {"low": 1, "high": 1}
 
     def __post_init__(self):
+        object.__setattr__(self, "low", as_parameter(self.low))
+        object.__setattr__(self, "high", as_parameter(self.high))
         check_number("UniformBox", "low", self.low)
         check_number("UniformBox", "high", self.high)
         low, high = concrete_value(self.low), concrete_value(self.high)

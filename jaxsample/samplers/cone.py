@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_parameter, concrete_value, in_range
+from .._core.params import as_parameter, check_parameter, concrete_value, in_range
 from .._core.pytree import pytree_attributes
 from ..checks.domains import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
@@ -43,6 +43,7 @@ class UniformCone(Sampler):
     def __init__(self, cos_theta_max=None, *, one_minus_cos_theta_max=None):
         if (cos_theta_max is None) == (one_minus_cos_theta_max is None):
             raise ValueError("UniformCone: give exactly one of 'cos_theta_max' and 'one_minus_cos_theta_max'")
+        cos_theta_max, one_minus_cos_theta_max = as_parameter(cos_theta_max), as_parameter(one_minus_cos_theta_max)
         if cos_theta_max is not None:
             check_parameter("UniformCone", "cos_theta_max", cos_theta_max, -1.0, 1.0, high_open=True)
             one_minus_cos_theta_max = 1.0 - cos_theta_max

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_parameter, concrete_value, in_range
+from .._core.params import as_parameter, check_parameter, concrete_value, in_range
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Interval
 
@@ -59,6 +59,7 @@ class Exponential(Sampler):
     parameter_ranks: ClassVar = {"rate": 0}
 
     def __post_init__(self):
+        object.__setattr__(self, "rate", as_parameter(self.rate))
         check_parameter("Exponential", "rate", self.rate, 0.0, np.inf, low_open=True, high_open=True)
 
     def _parameters_valid(self):
@@ -113,6 +114,8 @@ class TruncatedExponential(Sampler):
     parameter_ranks: ClassVar = {"rate": 0, "t_max": 0}
 
     def __post_init__(self):
+        object.__setattr__(self, "rate", as_parameter(self.rate))
+        object.__setattr__(self, "t_max", as_parameter(self.t_max))
         check_parameter("TruncatedExponential", "rate", self.rate, 0.0, np.inf, low_open=True, high_open=True)
         check_parameter("TruncatedExponential", "t_max", self.t_max, 0.0, np.inf, low_open=True, high_open=True)
 

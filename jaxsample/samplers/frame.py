@@ -12,7 +12,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._core.params import concrete_value
+from .._core.params import as_parameter, check_number, concrete_value
 from .._core.pytree import pytree_dataclass
 
 import numpy as np
@@ -29,7 +29,8 @@ class Frame:
     @classmethod
     def from_normal(cls, normal: jax.Array) -> "Frame":
         """Frame whose z axis is `normal` (normalised here; a zero or non-finite normal raises)."""
-        normal = jnp.asarray(normal)
+        check_number("Frame.from_normal", "normal", normal)
+        normal = jnp.asarray(as_parameter(normal))
         v = concrete_value(normal)
         if v is not None:
             if v.shape[-1:] != (3,):

@@ -57,7 +57,8 @@ class Mixture(Sampler):
             raise ValueError("Mixture: parameter 'components' must share one event shape")
         if len({c.measure for c in self.components}) != 1:
             raise ValueError("Mixture: parameter 'components' must have densities over one measure; got "
-                             + ", ".join(f"{type(c).__name__}: {c.measure}" for c in self.components))
+                             + ", ".join(f"{type(c).__name__}: {c.measure}" for c in self.components)
+                             + " (a Transformed component states its measure with measure=...)")
         check_weights("Mixture", "weights", self.weights)
         if hasattr(self.weights, "shape") and jnp.shape(self.weights)[-1] != len(self.components):
             raise ValueError(f"Mixture: parameter 'weights' must have one entry per component "

@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 
 from .base import Sampler
-from .._core.params import check_parameter, in_range
+from .._core.params import as_parameter, check_parameter, in_range
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
@@ -39,6 +39,7 @@ class PhongLobe(Sampler):
     parameter_ranks: ClassVar = {"exponent": 0}
 
     def __post_init__(self):
+        object.__setattr__(self, "exponent", as_parameter(self.exponent))
         check_parameter("PhongLobe", "exponent", self.exponent, 0.0, 1e7)
 
     def _parameters_valid(self):

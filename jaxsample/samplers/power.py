@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_choice, check_parameter, concrete_value, in_range
+from .._core.params import as_parameter, check_choice, check_parameter, concrete_value, in_range
 from ..checks.domains import Interval
 from .._core.numerics import safe_log, safe_pow
 
@@ -35,6 +35,7 @@ class Power(Sampler):
 
     def __init__(self, exponent, method: str = "inversion"):
         check_choice("Power", "method", method, ("inversion", "max"))
+        exponent = as_parameter(exponent)
         check_parameter("Power", "exponent", exponent, 0.0, 1e6)
         self.method = method
         if method == "max":

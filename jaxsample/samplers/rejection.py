@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler, draw
+from .base import Sampler, _one_key, _one_shape, draw
 from .._core.params import check_parameter, in_range
 from .._core.pytree import pytree_dataclass
 
@@ -110,15 +110,18 @@ class Rejection(Sampler):
         passed = blocks[..., dims] * self.bound * q < self.target_pdf(x)
         tail = u[..., -self._tail_dims:]
         spare = (self.fallback if self.fallback is not None else self.proposal).warp(tail)
-        out = select_first(x, passed, spare)
+        # An invalid bound (NaN after the invalid-parameter rule) fails every test, so the output
+        # would be the fallback's: adding 0·M makes it NaN then, as the rule promises; exact otherwise.
+        out = select_first(x, passed, spare) + 0.0 * jnp.asarray(self.bound, x.dtype)
         return out, RejectionInfo(jnp.any(passed, axis=-1), jnp.sum(passed, axis=-1, dtype=jnp.int32))
 
     def warp(self, u):
         return self.warp_with_info(u)[0]
 
-    def sample_with_info(self, key, shape=(), dtype=None):
-        """(samples, RejectionInfo) from uniforms drawn with `key`."""
-        return draw(self, key, shape, dtype, "warp_with_info")
+    def sample_with_info(self, key=None, sample_shape=(), dtype=None, *, seed=None, shape=None):
+        """(samples, RejectionInfo) from uniforms drawn with `key` (or `seed=`; as `sample`)."""
+        return draw(self, _one_key(key, seed, "sample_with_info"), _one_shape(sample_shape, shape), dtype,
+                    "warp_with_info")
 
     def pdf(self, x):
         p = self.target_pdf(x)

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_number, concrete_value
+from .._core.params import as_parameter, check_number, concrete_value
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Triangle
 from .._core.numerics import safe_div, safe_sqrt
@@ -63,6 +63,7 @@ class UniformTriangle(Sampler):
 
     def __post_init__(self):
         for name in ("a", "b", "c"):
+            object.__setattr__(self, name, as_parameter(getattr(self, name)))
             check_number("UniformTriangle", name, getattr(self, name))
         values = [concrete_value(v) for v in (self.a, self.b, self.c)]
         if any(v is None for v in values):

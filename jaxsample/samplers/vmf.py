@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .base import Sampler
-from .._core.params import check_parameter, in_range
+from .._core.params import as_parameter, check_parameter, in_range
 from .._core.pytree import pytree_dataclass
 from ..checks.domains import Directions
 from .._core.numerics import azimuth_fraction, direction_from_one_minus_cos, one_minus_cos_theta
@@ -41,6 +41,7 @@ class VonMisesFisher(Sampler):
     parameter_ranks: ClassVar = {"kappa": 0}
 
     def __post_init__(self):
+        object.__setattr__(self, "kappa", as_parameter(self.kappa))
         check_parameter("VonMisesFisher", "kappa", self.kappa, 1e-6, 1e7)
 
     def _parameters_valid(self):

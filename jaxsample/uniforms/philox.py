@@ -5,6 +5,8 @@ See `jaxsample.uniforms.sources` for the streams it feeds and the float grid of 
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -71,6 +73,12 @@ def bits_to_unit(bits: jax.Array, dtype) -> jax.Array:
     return top * np.float32(2.0 ** -23) + np.float32(2.0 ** -24)
 
 
+@functools.lru_cache(maxsize=None)
+def _legacy_key_shape(impl: str) -> tuple[int, ...]:
+    """The shape of a legacy raw key under the default PRNG implementation (2,) for threefry."""
+    return tuple(jax.eval_shape(lambda: jax.random.key_data(jax.random.key(0))).shape)
+
+
 def as_key(key, owner: str = "jaxsample") -> jax.Array:
     """The one key rule of every entry point: `key` as a typed JAX key.
 
@@ -80,13 +88,13 @@ def as_key(key, owner: str = "jaxsample") -> jax.Array:
     stream of the typed key it holds the data of. Anything else is a `TypeError` that says what a key
     is; so is an array of keys (vmap over them instead).
     """
+    if isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key) and key.shape == ():
+        return key
     what = ("a key is jax.random.key(seed) (a typed key of shape ()) or a legacy jax.random.PRNGKey(seed) "
             "(a uint32 array of shape {legacy}); for many keys, jax.vmap over them")
-    legacy = tuple(jax.eval_shape(lambda: jax.random.key_data(jax.random.key(0))).shape)
+    legacy = _legacy_key_shape(str(jax.config.jax_default_prng_impl))
     if isinstance(key, jax.Array) and jnp.issubdtype(key.dtype, jax.dtypes.prng_key):
-        if key.shape != ():
-            raise TypeError(f"{owner}: parameter 'key' has shape {key.shape}; " + what.format(legacy=legacy))
-        return key
+        raise TypeError(f"{owner}: parameter 'key' has shape {key.shape}; " + what.format(legacy=legacy))
     if isinstance(key, (jax.Array, np.ndarray)) and key.dtype == np.uint32 and key.shape == legacy:
         return jax.random.wrap_key_data(key)
     got = f"{type(key).__name__}" + (f" of dtype {key.dtype} and shape {key.shape}" if hasattr(key, "dtype") else "")

@@ -106,3 +106,10 @@ def test_an_invalid_traced_parameter_gives_a_nan_estimate_with_infinite_stderr(n
                                                 jax.random.clone(key), max_n=256, chunk_size=64, min_n=64,
                                                 rtol=0.1))(bad)
     assert np.isnan(float(until.mean)) and float(until.stderr) == np.inf
+
+
+def test_the_measure_valued_gradient_obeys_the_invalid_parameter_rule():
+    mean = jax.jit(lambda e: js.expectation(lambda x: x[2], js.PhongLobe(e), jax.random.key(17), 256,
+                                            gradient="measure_valued").mean)
+    assert np.isnan(float(mean(-0.5))) and np.isnan(float(jax.grad(mean)(-0.5)))
+    assert np.isfinite(float(jax.grad(mean)(2.0)))

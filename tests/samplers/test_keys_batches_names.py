@@ -56,6 +56,7 @@ def test_batch_shape_is_the_broadcast_of_the_parameters_leading_dimensions():
     assert js.PhongLobe(20.0).batch_shape == ()
     assert js.CosineHemisphere().batch_shape == ()
     assert js.PhongLobe(EXPONENTS).batch_shape == (3,)
+    assert js.PhongLobe([1.0, 10.0, 100.0]).batch_shape == (3,)  # a list is one parameter, not three
     assert js.TruncatedExponential(jnp.ones((2, 1)), jnp.ones(5)).batch_shape == (2, 5)
     # A vector parameter's own dimension is not a batch dimension.
     normals = jnp.array([[0.0, 0, 1], [0, 1, 0], [1, 0, 0], [1, 1, 1]])
@@ -137,6 +138,11 @@ def test_log_prob_prob_seed_and_sample_shape_are_the_same_functions():
     np.testing.assert_array_equal(np.asarray(lobe.sample(jax.random.clone(key), shape=(8,))), np.asarray(x))
     np.testing.assert_array_equal(np.asarray(lobe.log_prob(x)), np.asarray(lobe.log_pdf(x)))
     np.testing.assert_array_equal(np.asarray(lobe.prob(x)), np.asarray(lobe.pdf(x)))
+    # Today's keyword spellings keep working through the batching wrapper.
+    np.testing.assert_array_equal(np.asarray(lobe.pdf(x=x)), np.asarray(lobe.pdf(x)))
+    np.testing.assert_array_equal(np.asarray(lobe.inverse(x=x)), np.asarray(lobe.inverse(x)))
+    with pytest.raises(TypeError, match="once"):
+        lobe.sample(key, (8,), shape=(8,))
     with pytest.raises(TypeError, match="once"):
         lobe.sample(key, (8,), seed=key)
     with pytest.raises(TypeError, match="missing the key"):
@@ -147,15 +153,22 @@ def test_log_prob_prob_seed_and_sample_shape_are_the_same_functions():
 
 @pytest.mark.parametrize("make", [lambda: js.PhongLobe("20"), lambda: js.Exponential("1"),
                                   lambda: js.VonMisesFisher(None), lambda: js.Discrete(["a", "b"]),
-                                  lambda: js.UniformBox("0", "1"), lambda: js.PhongLobe(True)],
-                         ids=["phong-str", "exponential-str", "vmf-none", "discrete-str", "box-str", "phong-bool"])
+                                  lambda: js.UniformBox("0", "1"), lambda: js.PhongLobe(True),
+                                  lambda: js.Oriented(js.PhongLobe(2.0), "001")],
+                         ids=["phong-str", "exponential-str", "vmf-none", "discrete-str", "box-str", "phong-bool",
+                              "oriented-str"])
 def test_a_parameter_that_is_not_a_number_is_a_type_error_at_construction(make):
     with pytest.raises(TypeError, match="must be a number"):
         make()
 
 
+def uniform_sphere_density(x):
+    return jnp.full(x.shape[:-1], 1.0 / (4.0 * np.pi))
+
+
 # (name, build from one traced parameter, an invalid value, a valid value)
 INVALID_UNDER_JIT = [
+    ("rejection-bound-below-1", lambda t: js.Rejection(js.UniformSphere(), uniform_sphere_density, t), 0.5, 1.5),
     ("phong-negative", lambda t: js.PhongLobe(t), -1.0, 3.0),
     ("exponential-zero-rate", lambda t: js.Exponential(t), 0.0, 2.0),
     ("vmf-negative", lambda t: js.VonMisesFisher(t), -5.0, 5.0),
@@ -180,3 +193,11 @@ def test_a_traced_invalid_parameter_gives_nan_samples_densities_and_gradients(na
     assert np.isnan(float(value(bad))) and np.isnan(float(grad(bad)))
     # The valid value stays finite: the rule poisons only invalid parameters.
     assert np.isfinite(float(value(good))) and np.isfinite(float(grad(good)))
+
+
+def test_a_rebuilt_sampler_with_invalid_concrete_parameters_gives_nan_outside_jit():
+    # tree_map (an optimizer step) rebuilds a sampler without its constructor's ValueError.
+    bad = jax.tree_util.tree_map(lambda p: p - 5.0, js.PhongLobe(2.0))
+    x, p = bad.sample_with_pdf(jax.random.key(8), (4,))
+    assert np.all(np.isnan(np.asarray(x))) and np.all(np.isnan(np.asarray(p)))
+    assert np.isnan(float(js.estimate(lambda w: w[2], bad, jax.random.key(9), 256).mean))
