@@ -31,8 +31,13 @@ def cos3(w):
     return w[2] ** 3
 
 
+def key_of(i=0):
+    """A fresh typed key (each call a new key object: uniform_block consumes the key it gets)."""
+    return jax.random.key(1400 + i)
+
+
 def seed_words(i=0):
-    return U.seed_from_key(jax.random.key(1400 + i))
+    return U.seed_from_key(key_of(i))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -129,7 +134,7 @@ def test_the_point_past_2_to_the_33_is_the_one_its_counter_formula_gives(name, s
     the 32-bit counter, bit for bit)."""
     seed = seed_words()
     formula = formula or _expected_stratified_1d
-    alone = np.asarray(U.uniform_block(source, seed, BIG, 1, dims, total=TOTAL))[0]
+    alone = np.asarray(U.uniform_block(source, key_of(), BIG, 1, dims, total=TOTAL))[0]
     np.testing.assert_array_equal(alone, formula(seed, BIG))
     # The other routes in one program (static offsets: each window is narrow or wide as it is).
     small, window, straddling = jax.jit(lambda s: (
@@ -174,7 +179,7 @@ def test_the_streaming_loop_carries_its_offset_across_2_to_the_33(source):
     dims, base, count = 2, (1 << 33) - 32, 64
     moments = jax.jit(lambda s: _stream(lambda u: u, source, s, dims, jnp.float32, as_index(base, count),
                                         count, TOTAL, 16, (dims,), 16))(seed)
-    block = np.asarray(U.uniform_block(source, seed, base, count, dims, total=TOTAL), np.float64)
+    block = np.asarray(U.uniform_block(source, key_of(2), base, count, dims, total=TOTAL), np.float64)
     replicates = source.replicates
     per_replicate = block.reshape(count // replicates, replicates, dims).sum(axis=0)
     got = np.asarray(moments.sums, np.float64) + np.asarray(moments.compensation, np.float64)
@@ -307,4 +312,4 @@ def test_replicated_sources_say_how_to_change_the_replicate_count(uniforms, name
     source = getattr(U, name)(replicates=8)
     assert jax.eval_shape(lambda k: js.estimate(cos3, d, k, 1000, uniforms=source), jax.random.key(8)).n == 1000
     with pytest.raises(ValueError, match=r"Stratified\(replicates=\.\.\.\)"):
-        U.uniform_block("stratified", seed_words(3), 0, 8, 2, total=1000)
+        U.uniform_block("stratified", key_of(3), 0, 8, 2, total=1000)
