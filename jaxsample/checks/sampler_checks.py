@@ -92,8 +92,8 @@ def chi2_test(sampler, key, n_samples: int = 1_000_000, n_cells: int = 128, sign
               n_tests: int = 1, n_pilot: int = 65_536) -> Chi2Result:
     """Pearson chi-square test of `sampler.sample` against `sampler.pdf`.
 
-    Cells of roughly equal probability are placed at the quantiles of `n_pilot` pilot samples drawn
-    with an independent key (so cell placement does not depend on the tested samples and the
+    Cells of roughly equal probability are placed at the quantiles of `n_pilot` pilot samples
+    independent of the tested ones (so cell placement does not depend on the tested samples and the
     statistic keeps its chi-square law); expected counts are n · ∫_cell pdf by float64 quadrature
     — never by low-order rules, which reject sharp lobes wrongly. Cells expecting fewer than 5 are
     pooled. Any sample in a cell of zero probability (or outside the domain) fails the test.
@@ -101,13 +101,15 @@ def chi2_test(sampler, key, n_samples: int = 1_000_000, n_cells: int = 128, sign
     `significance` is the false-failure probability of the whole family of `n_tests` tests; each
     test uses the Šidák level 1 - (1 - significance)^(1/n_tests).
     """
-    pilot_key, test_key = jax.random.split(key)
+    # Pilot and tested samples are disjoint index ranges of one draw: `sample` is counter-based
+    # (sample i depends only on the key and i), so they are independent, and one compiled program
+    # draws both.
+    drawn = np.asarray(_sample_jit(sampler, key, n_pilot + n_samples))
+    pilot, samples = drawn[:n_pilot], drawn[n_pilot:]
     domain = sampler.domain()
-    pilot = np.asarray(_sample_jit(sampler, pilot_key, n_pilot))
     cells = domains.cells(domain, pilot, n_cells)
     mass = np.bincount(cells.cell_of_point, weights=cells.weights * pdf_float64(sampler, cells.points),
                        minlength=cells.n_cells)
-    samples = np.asarray(_sample_jit(sampler, test_key, n_samples))
     index = np.asarray(cells.assign(samples))
     inside = index >= 0
     observed = np.bincount(index[inside], minlength=cells.n_cells).astype(np.float64)
