@@ -9,7 +9,7 @@ The folders are the layers (docs/design.md): `_core` (numerics, pytrees, paramet
 `report` (`python -m jaxsample report`). The public names are the ones below.
 """
 
-from . import domains, gradients, numerics, quadrature, scene, testing, uniforms
+from . import gradients, numerics, quadrature, scene, uniforms
 from .estimators import (Estimate, EstimateUntil, estimate, estimate_antithetic, estimate_control_variate,
                          estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation,
                          expectation_grad, expectation_values, integrand_values)
@@ -19,6 +19,21 @@ from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, 
                        UniformHemisphere, UniformSphere, UniformTriangle, VonMisesFisher)
 
 __version__ = "0.1.0"
+
+# The checks and their geometry load on first use (`js.testing`, `js.domains`), so that a program
+# that only samples and estimates never imports them.
+_ON_FIRST_USE = ("domains", "testing")
+
+
+def __getattr__(name):
+    if name in _ON_FIRST_USE:
+        import importlib
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_ON_FIRST_USE))
 
 __all__ = [
     # directional samplers (density over solid angle)

@@ -66,6 +66,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
+from ._core.params import concrete_value
+
 __all__ = [
     "KINDS",
     "ConvergenceRow",
@@ -129,18 +131,11 @@ def _check_points(kind: str, n_points, name: str = "n_points") -> int:
     return n
 
 
-def _concrete(x) -> np.ndarray | None:
-    """x as a NumPy array, or None when x is a tracer (then it cannot be checked)."""
-    try:
-        return np.asarray(x)
-    except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
-        return None
-
-
 def _as_array(value):
+    """A list or tuple of bounds as one array: NumPy when every entry is concrete (it keeps their
+    dtype), JAX when one is traced."""
     if isinstance(value, (list, tuple)):
-        concrete = _concrete(value)
-        return jnp.asarray(value) if concrete is None else concrete
+        return jnp.asarray(value) if concrete_value(value) is None else np.asarray(value)
     return value
 
 
@@ -169,7 +164,7 @@ def _box(lower, upper, dims: int | None, name_lower: str = "lower", name_upper: 
         raise ValueError(f"dims must be an integer >= 1; got {d}")
     bounds = []
     for value in (lower, upper):
-        concrete = _concrete(value)
+        concrete = concrete_value(value)  # float64, or None when traced (then it cannot be checked)
         if concrete is None:
             bounds.append(jnp.broadcast_to(jnp.asarray(value, dtype), (d,)))
         else:

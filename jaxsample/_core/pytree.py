@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 _FIELDS = "_pytree_fields_"  # an unflattened object remembers its split here (inferred classes)
@@ -127,3 +128,15 @@ def pytree_attributes(leaves: tuple[str, ...], static: tuple[str, ...] = ()):
     cannot express.
     """
     return lambda cls: _declare(cls, leaves, static)
+
+
+def to_float64(tree):
+    """`tree` with every floating leaf cast to float64 (call under `jax.enable_x64(True)`): a sampler,
+    light or BRDF evaluated in double precision, for the checks and the quadrature references."""
+
+    def cast(leaf):
+        if isinstance(leaf, (jax.Array, np.ndarray, float)) and jnp.issubdtype(jnp.result_type(leaf), jnp.floating):
+            return jnp.asarray(leaf, jnp.float64)
+        return leaf
+
+    return jax.tree_util.tree_map(cast, tree)

@@ -18,18 +18,10 @@ import jax.numpy as jnp
 import numpy as np
 from jax.scipy.special import gammaincc
 
+from .._core.pytree import to_float64
+from . import domains
+
 __all__ = ["Chi2Result", "chi2_test", "normalization", "inverse_error", "jacobian_error", "pdf_float64", "to_float64"]
-
-
-def to_float64(tree):
-    """`tree` with every floating leaf cast to float64 (call under `jax.enable_x64(True)`)."""
-
-    def cast(leaf):
-        if isinstance(leaf, (jax.Array, np.ndarray, float)) and jnp.issubdtype(jnp.result_type(leaf), jnp.floating):
-            return jnp.asarray(leaf, jnp.float64)
-        return leaf
-
-    return jax.tree_util.tree_map(cast, tree)
 
 
 @functools.partial(jax.jit, static_argnums=2)
@@ -64,7 +56,7 @@ def pdf_float64(sampler, points: np.ndarray, chunk: int = 1 << 16) -> np.ndarray
 
 def normalization(sampler) -> float:
     """∫ pdf dμ over the sampler's domain, by deterministic float64 quadrature (1 if normalised)."""
-    points, weights = sampler.domain().quadrature()
+    points, weights = domains.quadrature(sampler.domain())
     return float(np.sum(weights * pdf_float64(sampler, points)))
 
 
@@ -100,8 +92,8 @@ def chi2_test(sampler, key, n_samples: int = 1_000_000, n_cells: int = 128, sign
               n_tests: int = 1, n_pilot: int = 65_536) -> Chi2Result:
     """Pearson chi-square test of `sampler.sample` against `sampler.pdf`.
 
-    Cells of roughly equal probability are placed at the quantiles of `n_pilot` pilot samples drawn
-    with an independent key (so cell placement does not depend on the tested samples and the
+    Cells of roughly equal probability are placed at the quantiles of `n_pilot` pilot samples
+    independent of the tested ones (so cell placement does not depend on the tested samples and the
     statistic keeps its chi-square law); expected counts are n · ∫_cell pdf by float64 quadrature
     — never by low-order rules, which reject sharp lobes wrongly. Cells expecting fewer than 5 are
     pooled. Any sample in a cell of zero probability (or outside the domain) fails the test.
@@ -109,13 +101,15 @@ def chi2_test(sampler, key, n_samples: int = 1_000_000, n_cells: int = 128, sign
     `significance` is the false-failure probability of the whole family of `n_tests` tests; each
     test uses the Šidák level 1 - (1 - significance)^(1/n_tests).
     """
-    pilot_key, test_key = jax.random.split(key)
+    # Pilot and tested samples are disjoint index ranges of one draw: `sample` is counter-based
+    # (sample i depends only on the key and i), so they are independent, and one compiled program
+    # draws both.
+    drawn = np.asarray(_sample_jit(sampler, key, n_pilot + n_samples))
+    pilot, samples = drawn[:n_pilot], drawn[n_pilot:]
     domain = sampler.domain()
-    pilot = np.asarray(_sample_jit(sampler, pilot_key, n_pilot))
-    cells = domain.cells(pilot, n_cells)
+    cells = domains.cells(domain, pilot, n_cells)
     mass = np.bincount(cells.cell_of_point, weights=cells.weights * pdf_float64(sampler, cells.points),
                        minlength=cells.n_cells)
-    samples = np.asarray(_sample_jit(sampler, test_key, n_samples))
     index = np.asarray(cells.assign(samples))
     inside = index >= 0
     observed = np.bincount(index[inside], minlength=cells.n_cells).astype(np.float64)

@@ -13,7 +13,7 @@ import numpy as np
 from .base import Sampler
 from .._core.params import as_parameter, check_number, concrete_value
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Box
+from .domain import Box
 
 
 @pytree_dataclass

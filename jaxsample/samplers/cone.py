@@ -10,7 +10,7 @@ import numpy as np
 from .base import Sampler
 from .._core.params import as_parameter, check_parameter, concrete_value, in_range
 from .._core.pytree import pytree_attributes
-from ..checks.domains import Directions
+from .domain import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
     one_minus_cos_theta)
 

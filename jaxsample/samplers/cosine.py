@@ -10,7 +10,7 @@ from . import concentric
 from .base import Sampler
 from .._core.params import check_choice
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Directions
+from .domain import Directions
 from .._core.numerics import INV_PI, azimuth_fraction, safe_sqrt, spherical_direction
 
 

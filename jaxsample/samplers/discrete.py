@@ -17,7 +17,7 @@ import numpy as np
 from .base import Sampler
 from .._core.params import check_choice, check_number, concrete_value, default_float_dtype
 from .._core.pytree import pytree_attributes
-from ..checks.domains import DiscreteSet
+from .domain import DiscreteSet
 from .._core.numerics import one_minus_epsilon
 
 

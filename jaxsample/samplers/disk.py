@@ -11,7 +11,7 @@ from . import concentric
 from .base import Sampler
 from .._core.params import check_choice, check_parameter
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Disk
+from .domain import Disk
 from .._core.numerics import INV_PI, azimuth_fraction, safe_sqrt, sincos_2pi
 from .rejection import select_first
 

@@ -17,7 +17,7 @@ import numpy as np
 from .base import Sampler
 from .._core.params import as_parameter, check_parameter, concrete_value, in_range
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Interval
+from .domain import Interval
 
 
 # Beyond 80 mean free paths the exponential has mass e^-80 < 1e-34: the quadrature stops there.

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from .base import Sampler
 from .._core.params import as_parameter, check_parameter, in_range
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Directions
+from .domain import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
     one_minus_cos_theta, one_minus_epsilon)
 

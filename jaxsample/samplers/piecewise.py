@@ -18,7 +18,7 @@ from .._core.params import concrete_value
 from .._core.pytree import pytree_attributes
 from .discrete import (as_array, check_weights, normalized_tables, select_rows_with_remainder, valid_tables,
     select_with_remainder)
-from ..checks.domains import Box, Interval
+from .domain import Box, Interval
 
 
 def _bin_index(x, n):

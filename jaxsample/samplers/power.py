@@ -7,7 +7,7 @@ import numpy as np
 
 from .base import Sampler
 from .._core.params import as_parameter, check_choice, check_parameter, concrete_value, in_range
-from ..checks.domains import Interval
+from .domain import Interval
 from .._core.numerics import safe_log, safe_pow
 
 

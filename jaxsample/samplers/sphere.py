@@ -9,7 +9,7 @@ import jax.numpy as jnp
 from .base import Sampler
 from .._core.params import check_choice, check_parameter
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Directions
+from .domain import Directions
 from .._core.numerics import (INV_2PI, INV_4PI, azimuth_fraction, one_minus_cos_theta, safe_sqrt,
     spherical_direction)
 from .rejection import select_first

@@ -9,7 +9,7 @@ import numpy as np
 from .base import Sampler
 from .._core.params import as_parameter, check_number, concrete_value
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Triangle
+from .domain import Triangle
 from .._core.numerics import safe_div, safe_sqrt
 
 # A triangle whose doubled area is below this many float64 epsilons times its longest squared edge

@@ -11,7 +11,7 @@ import numpy as np
 from .base import Sampler
 from .._core.params import as_parameter, check_parameter, in_range
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Directions
+from .domain import Directions
 from .._core.numerics import azimuth_fraction, direction_from_one_minus_cos, one_minus_cos_theta
 
 

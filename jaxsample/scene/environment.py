@@ -9,7 +9,7 @@ import numpy as np
 
 from ..samplers.base import Sampler
 from .._core.pytree import pytree_attributes, pytree_dataclass
-from ..checks.domains import Directions
+from ..samplers.domain import Directions
 from .._core.numerics import azimuth_fraction, safe_div, spherical_direction
 from ..samplers.piecewise import PiecewiseConstant2D
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..samplers.frame import Frame
 from ..quadrature import gauss_legendre_nodes_weights
-from ..checks.sampler_checks import to_float64
+from .._core.pytree import to_float64
 from .environment import EnvironmentMap, direction_from_uv
 from .sky import ConstantSky
 from .sphere_light import SphereLight

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 from ..samplers.base import Sampler
 from .._core.params import check_parameter, concrete_value
 from .._core.pytree import pytree_dataclass
-from ..checks.domains import Directions
+from ..samplers.domain import Directions
 from .._core.numerics import safe_div
 from ..samplers.triangle import UniformTriangle
 

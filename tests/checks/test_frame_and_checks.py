@@ -1,4 +1,8 @@
-"""The Duff et al. frame, `Oriented`, and the checks in `jaxsample.testing` catching wrong samplers."""
+"""The Duff et al. frame, `Oriented`, the checks in `jaxsample.testing` catching wrong samplers,
+and the checks' geometry kept out of the samplers' imports."""
+
+import subprocess
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -123,3 +127,52 @@ def test_chi_square_p_values_are_uniform_under_the_null():
     grid = np.arange(1, 41) / 40
     d = max(np.max(grid - p), np.max(p - (grid - 1 / 40)))
     assert d < 0.3, p
+
+
+def test_importing_a_sampler_does_not_import_the_checks_geometry():
+    # Samplers name their domain (jaxsample.samplers.domain); the quadrature and binning on it
+    # (jaxsample.checks.domains) load with the checks, on first use of js.testing or js.domains.
+    code = ("import sys, jaxsample.samplers.phong, jaxsample as js\n"
+            "loaded = sorted(m for m in sys.modules if m.startswith('jaxsample.checks'))\n"
+            "assert not loaded, loaded\n"
+            "js.testing.normalization\n"
+            "assert 'jaxsample.checks.domains' in sys.modules\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+class _HalfLine:
+    """A domain class of a user's own: [0, 1] with its own quadrature, cells and membership."""
+
+    def quadrature(self):
+        nodes, weights = np.polynomial.legendre.leggauss(40)
+        return 0.5 * (nodes + 1.0), 0.5 * weights
+
+    def cells(self, pilot, n_cells):
+        return js.domains.cells(js.domains.Interval(0.0, 1.0), pilot, n_cells)
+
+    def contains(self, x):
+        return (np.asarray(x) >= 0) & (np.asarray(x) <= 1)
+
+
+class _Triangular(js.Sampler):
+    """p(x) = 2x on [0, 1] by inversion, x = sqrt(u), over a domain class of the user's own."""
+
+    uniform_dims = 1
+
+    def warp(self, u):
+        return jnp.sqrt(u[..., 0])
+
+    def pdf(self, x):
+        return jnp.where((x >= 0) & (x <= 1), 2.0 * x, 0.0)
+
+    def domain(self):
+        return _HalfLine()
+
+
+def test_the_checks_use_the_methods_of_a_domain_class_of_the_users_own():
+    sampler = _Triangular()
+    assert abs(testing.normalization(sampler) - 1.0) < 1e-12
+    # False-failure rate 1e-6 (the default significance of one test).
+    assert testing.chi2_test(sampler, jax.random.key(9), n_samples=50_000, n_cells=16, n_pilot=4096).passed
+    assert np.array_equal(js.domains.contains(sampler.domain(), np.array([-0.5, 0.5])), [False, True])

@@ -1,16 +1,13 @@
-"""Foundation checks for every directional sampler: normalization, chi-square, inverse, Jacobian,
-domain, finiteness at the hard cases in float32 and float64, parameter errors, jit and vmap.
+"""What is particular to the directional samplers; the contract every sampler meets
+(normalization, chi-square, inverse, Jacobian, support, finite values and gradients at the hard
+cases) is `test_contract.py`, over the entries of `registry.py`.
 
-Statistical false-failure rate: the chi-square tests below form one family of at most
-`N_CHI2_TESTS` tests run at a family-wise significance of 1e-6 (Šidák-corrected per test), so the
-whole file fails by chance with probability below 1e-6.
-
-Power: the demonstrations that a wrong sampler is rejected run at the sample size the suite uses
-for that family (`CHI2_SAMPLES`), and require a p-value far below the threshold, so that the
-rejection is not one lucky key. At 400k samples a 2 % Phong exponent error was rejected for only
-some keys, so the Phong families use 2M samples: there a 2 % error gives p < 1e-50 for every key
-tried (a 1 % error is at the edge: rejected for 3 keys of 4 at n = 5). Cones 1 % too narrow give
-p < 1e-150 at 400k.
+Here: the wrong-sampler demonstrations for the chi-square family (at the sample size the contract
+uses for the family: a 2 % Phong exponent error was rejected at 400k samples for only some keys, so
+the Phong entries use 2M, where it gives p < 1e-50 for every key tried; a 1 % error is at the edge,
+rejected for 3 keys of 4 at n = 5; cones 1 % too narrow give p < 1e-150 at 400k), normalization
+over the documented parameter ranges, the cone's constructors, float32 against float64, parameter
+errors, and jit/vmap over parameters.
 """
 
 import jax
@@ -23,49 +20,7 @@ from hypothesis import strategies as st
 import jaxsample as js
 from jaxsample.checks import sampler_checks as testing
 
-F32_LAST = 1.0 - 2.0**-24
-N_CHI2_TESTS = 40
-FAMILY_SIGNIFICANCE = 1e-6
-
-# (name, constructor from one float parameter, parameter values spanning the documented range)
-FAMILIES = {
-    "UniformSphere": (lambda p: js.UniformSphere(), [0.0]),
-    "UniformSphere-rejection": (lambda p: js.UniformSphere(method="rejection"), [0.0]),
-    "UniformHemisphere": (lambda p: js.UniformHemisphere(), [0.0]),
-    "CosineHemisphere-malley": (lambda p: js.CosineHemisphere(), [0.0]),
-    "CosineHemisphere-inversion": (lambda p: js.CosineHemisphere(method="inversion"), [0.0]),
-    "PhongLobe": (lambda n: js.PhongLobe(n), [0.0, 1.0, 20.0, 100.0, 1e4, 1e7]),
-    "UniformCone": (lambda h: js.UniformCone(one_minus_cos_theta_max=h),
-                    [1e-8 / (2 * np.pi), 1e-6, 1e-3, 0.5, 1.0, 2.0]),
-    "VonMisesFisher": (lambda k: js.VonMisesFisher(k), [1e-6, 1e-2, 1.0, 89.0, 1e3, 1e7]),
-    "Oriented-Phong": (lambda n: js.Oriented(js.PhongLobe(n), jnp.array([0.3, -0.5, -0.8])),
-                       [0.0, 10.0, 1e3]),
-    "Oriented-Cone-down": (lambda h: js.Oriented(js.UniformCone(one_minus_cos_theta_max=h),
-                                                 jnp.array([0.0, 0.0, -1.0])), [1e-3, 0.3]),
-}
-CASES = [(name, p) for name, (_, values) in FAMILIES.items() for p in values]
-PARAMETRIC = {"PhongLobe": (0.0, 1e7), "UniformCone": (1e-9, 2.0), "VonMisesFisher": (1e-6, 1e7)}
-
-
-def make(name, p):
-    return FAMILIES[name][0](jnp.float32(p))
-
-
-def hard_uniforms(dtype=jnp.float32, dims=2):
-    """Every combination of u in {0, 0.5, 1 - 2^-24} in the first two coordinates (0.5 elsewhere),
-    plus all-0 and all-(1 - 2^-24) rows for samplers that use more than two uniforms."""
-    edges = jnp.array([0.0, 0.5, 1.0 - 2.0**-24], dtype)
-    a, b = jnp.meshgrid(edges, edges, indexing="ij")
-    rows = jnp.full((9, dims), 0.5, dtype).at[:, 0].set(a.ravel()).at[:, 1].set(b.ravel())
-    if dims > 2:
-        rows = jnp.concatenate([rows, jnp.full((2, dims), 0.0, dtype).at[1].set(edges[2])])
-    return rows
-
-
-@pytest.mark.parametrize("name,p", CASES)
-def test_normalization_within_1e_6(name, p):
-    assert abs(testing.normalization(make(name, p)) - 1.0) < 1e-6
-
+import registry
 
 @given(log_n=st.floats(0.0, 7.0), log_h=st.floats(-9.0, np.log10(2.0)), log_k=st.floats(-6.0, 7.0))
 def test_normalization_across_the_documented_ranges(log_n, log_h, log_k):
@@ -73,24 +28,6 @@ def test_normalization_across_the_documented_ranges(log_n, log_h, log_k):
                     js.UniformCone(one_minus_cos_theta_max=jnp.float32(10**log_h)),
                     js.VonMisesFisher(jnp.float32(10**log_k))):
         assert abs(testing.normalization(sampler) - 1.0) < 1e-6, sampler
-
-
-CHI2_CASES = [c for c in CASES if c[1] not in (1e4,)]
-# Samples per chi-square test, by family (default 400k): enough to reject a 2 % exponent error.
-CHI2_SAMPLES = {"PhongLobe": 2_000_000, "Oriented-Phong": 2_000_000}
-
-
-def chi2_samples(name):
-    return CHI2_SAMPLES.get(name, 400_000)
-
-
-@pytest.mark.parametrize("name,p", CHI2_CASES)
-def test_chi_square_goodness_of_fit(name, p):
-    assert len(CHI2_CASES) <= N_CHI2_TESTS
-    key = jax.random.fold_in(jax.random.key(20261121), CASES.index((name, p)))
-    result = testing.chi2_test(make(name, p), key, n_samples=chi2_samples(name),
-                               significance=FAMILY_SIGNIFICANCE, n_tests=N_CHI2_TESTS)
-    assert result.passed, result
 
 
 class _PhongOff(js.PhongLobe):
@@ -114,96 +51,36 @@ class _ConeOff(js.UniformCone):
                                           ("UniformCone", _ConeOff(one_minus_cos_theta_max=jnp.float32(0.5))),
                                           ("UniformCone", _ConeOff(one_minus_cos_theta_max=jnp.float32(1e-6)))])
 def test_chi_square_rejects_a_sampler_off_by_two_percent(family, wrong):
-    # At the suite's own sample size for the family, and by a wide margin: p below 1e-20 where
-    # the threshold is 2.5e-8 (the margin seen over keys is tens of decades).
-    result = testing.chi2_test(wrong, jax.random.key(7), n_samples=chi2_samples(family),
-                               significance=FAMILY_SIGNIFICANCE, n_tests=N_CHI2_TESTS)
+    # At the contract's sample size and threshold for the family (1.6e-8 per test), and by a wide
+    # margin: p below 1e-20 (the margin seen over keys is tens of decades).
+    result = testing.chi2_test(wrong, jax.random.key(7), **registry.chi2_settings(family))
     assert not result.passed and result.p_value < 1e-20, result
 
 
-@pytest.mark.parametrize("name,p", [c for c in CASES if make(*c).has_inverse])
-def test_inverse_round_trip(name, p):
-    sampler = make(name, p)
-    u = jax.random.uniform(jax.random.key(3), (4096, 2))
-    u = jnp.concatenate([u, hard_uniforms()])
-    # At the pole (sin θ = 0) the azimuth is not recoverable: the warp is a bijection only off
-    # that measure-zero set, so there only the polar coordinate is compared.
-    x = sampler.warp(u)
-    at_pole = np.asarray(u[:, 0] == 0) & bool(sampler.periodic_dims)  # u₀ = 0 is the pole
-    # float32: 2e-6 on u. A rotated lobe loses ~1e-7 absolute per component in the rotation,
-    # which n = 1000 amplifies in u₀ = 1 - cos^{n+1}: Oriented gets 5e-5 (documented there).
-    tolerance = 5e-5 if isinstance(sampler, js.Oriented) else 2e-6
-    assert float(jnp.max(testing.inverse_error(sampler, u[~at_pole]))) < tolerance
-    polar = np.abs(np.asarray(sampler.inverse(x[at_pole])[:, 0] - u[at_pole][:, 0]))
-    assert np.all(polar < tolerance)
-
-
-@pytest.mark.parametrize("name,p", [c for c in CASES if make(*c).has_inverse])
-def test_density_matches_the_autodiff_jacobian_of_the_warp(name, p):
-    # In float64 the Jacobian of the warp is accurate even for lobes 1e-7 wide.
-    with jax.enable_x64(True):
-        sampler = FAMILIES[name][0](jnp.float64(p))
-        u = jax.random.uniform(jax.random.key(4), (512, 2), dtype=jnp.float64)
-        u = 1e-3 + (1 - 2e-3) * u  # away from the horizon, where pdf -> 0 and J -> inf
-        assert float(jnp.max(testing.jacobian_error(sampler, u))) < 1e-6
-
-
-@pytest.mark.parametrize("name,p", CASES)
-def test_samples_are_unit_vectors_inside_the_support(name, p):
-    sampler = make(name, p)
-    x, pdf = sampler.sample_with_pdf(jax.random.key(5), (20_000,))
-    assert x.shape == (20_000, 3) and x.dtype == jnp.float32
-    assert np.all(sampler.domain().contains(np.asarray(x)))
-    assert np.all(np.asarray(pdf) > 0)
-    np.testing.assert_allclose(sampler.pdf(x), pdf, rtol=2e-5)
-    np.testing.assert_allclose(sampler.log_pdf(x), jnp.log(pdf), atol=2e-5)
-
-
-def _probe(name, dtype):
-    """A scalar function of (parameter, u) touching warp, pdf, log_pdf and warp_with_pdf."""
-
-    def probe(p, u):
-        sampler = FAMILIES[name][0](p)
-        x, pdf = sampler.warp_with_pdf(u)
-        log_pdf = sampler.log_pdf(x)  # -inf where the density is 0 (Malley's corners: the horizon)
-        return (jnp.sum(x * jnp.array([0.3, 0.5, 0.7], dtype)) + pdf * 1e-3
-                + jnp.where(jnp.isfinite(log_pdf), log_pdf, 0.0) * 1e-3)
-
-    return probe
-
-
-@pytest.mark.parametrize("dtype", ["float32", "float64"])
-@pytest.mark.parametrize("name,p", CASES)
-def test_no_nan_or_inf_in_values_and_gradients_at_the_hard_cases(name, p, dtype):
-    with jax.enable_x64(dtype == "float64"):
-        dt = jnp.dtype(dtype)
-        probe = _probe(name, dt)
-        param = jnp.asarray(p, dt)
-        sampler = FAMILIES[name][0](param)
-        u = hard_uniforms(dt, sampler.uniform_dims)
-        x, pdf = sampler.warp_with_pdf(u)
-        assert np.all(np.isfinite(x)) and np.all(np.isfinite(pdf)) and np.all(pdf >= 0), (u, x, pdf)
-        assert np.all(np.isfinite(sampler.pdf(x))) and not np.any(np.isnan(sampler.log_pdf(x)))
-        assert np.all(np.isfinite(jax.vmap(probe, (None, 0))(param, u)))
-        for transform in (jax.jacfwd, jax.jacrev):  # forward and reverse mode (grad is jacrev here)
-            grads = jax.jit(jax.vmap(transform(probe, argnums=(0, 1)), (None, 0)))(param, u)
-            for g in grads:
-                assert np.all(np.isfinite(np.asarray(g))), (u, grads)
+DIRECTIONAL = ["UniformSphere", "UniformSphere-rejection", "UniformHemisphere", "CosineHemisphere-malley",
+               "CosineHemisphere-inversion", "PhongLobe", "UniformCone", "VonMisesFisher", "Oriented-Phong",
+               "Oriented-UniformCone"]
+_warp_with_pdf = jax.jit(lambda sampler, u: sampler.warp_with_pdf(u))
 
 
 def test_float32_matches_float64_at_the_hard_cases():
-    # The worst float32 error of directions and densities against a float64 reference.
+    # The worst float32 error of directions and densities, at the hard u, against float64 with
+    # the same (float32-rounded) parameters.
     worst_direction, worst_pdf = 0.0, 0.0
-    for name, p in CASES:
-        u32 = hard_uniforms(jnp.float32, make(name, p).uniform_dims)
-        x32, p32 = make(name, p).warp_with_pdf(u32)
-        with jax.enable_x64(True):
-            x64, p64 = FAMILIES[name][0](jnp.float64(np.float32(p))).warp_with_pdf(u32.astype(jnp.float64))
-            x64, p64 = np.asarray(x64), np.asarray(p64)
-        worst_direction = max(worst_direction, float(np.max(np.abs(np.asarray(x32) - x64))))
-        positive = p64 > 0
-        assert np.all(np.asarray(p32)[~positive] == 0)
-        worst_pdf = max(worst_pdf, float(np.max(np.abs(np.asarray(p32)[positive] / p64[positive] - 1))))
+    for entry in map(registry.BY_NAME.get, DIRECTIONAL):
+        for case in entry.cases:
+            params = registry.cast_params(case.params, jnp.float32)
+            sampler = entry.make(*params)
+            u32 = registry.edge_uniforms(sampler.uniform_dims, jnp.float32)
+            x32, p32 = _warp_with_pdf(sampler, u32)
+            with jax.enable_x64(True):
+                x64, p64 = _warp_with_pdf(entry.make(*registry.cast_params(params, jnp.float64)),
+                                          u32.astype(jnp.float64))
+                x64, p64 = np.asarray(x64), np.asarray(p64)
+            worst_direction = max(worst_direction, float(np.max(np.abs(np.asarray(x32) - x64))))
+            positive = p64 > 0
+            assert np.all(np.asarray(p32)[~positive] == 0), (entry.name, case)
+            worst_pdf = max(worst_pdf, float(np.max(np.abs(np.asarray(p32)[positive] / p64[positive] - 1))))
     assert worst_direction < 1e-6 and worst_pdf < 1e-5, (worst_direction, worst_pdf)
 
 
@@ -238,6 +115,26 @@ def test_cone_constructors_match_their_closed_forms(dtype):
         cone = js.UniformCone.from_sin2(jnp.asarray(sin2, dt))
         np.testing.assert_allclose(cone.one_minus_cos_theta_max, sin2 / (1 + np.sqrt(1 - sin2)), rtol=rtol)
         np.testing.assert_allclose(cone.cos_theta_max, np.sqrt(1 - sin2), rtol=rtol, atol=1e-7)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_cone_constructors_have_finite_derivatives_at_the_hard_cases(dtype):
+    """d(1 - cos θ_max)/d(parameter) of each constructor, forward and reverse, at the caps the
+    contract's hard cases name (1e-8 sr to the whole sphere); with the contract's check of the
+    cone's derivatives in 1 - cos θ_max at those caps, every constructor's derivatives are finite."""
+    constructors = {
+        "from_solid_angle": (js.UniformCone.from_solid_angle, [1e-8, 1e-3, 2 * np.pi, 4 * np.pi]),
+        "from_sin2": (js.UniformCone.from_sin2, [1e-8 / np.pi, 0.5]),
+        "from_angle": (js.UniformCone.from_angle, [1e-4, 0.5, np.pi / 2, np.pi]),
+        "cos_theta_max": (js.UniformCone, [-1.0, 0.0, 0.999]),
+    }
+    with jax.enable_x64(dtype == "float64"):
+        for name, (build, values) in constructors.items():
+            values = jnp.asarray(values, jnp.dtype(dtype))
+            h = lambda v: build(v).one_minus_cos_theta_max  # noqa: E731
+            for transform in (jax.jacfwd, jax.jacrev):
+                derivative = np.asarray(jax.jit(jax.vmap(transform(h)))(values))
+                assert np.all(np.isfinite(derivative)), (name, transform.__name__, derivative)
 
 
 def test_densities_vanish_outside_the_support_without_nan():
@@ -292,8 +189,9 @@ def test_jit_and_vmap_over_parameters_compile_once():
     assert len(traces) == 1
     # Samplers built inside vmap from traced parameters, for every parametric family.
     for name in ("UniformCone", "VonMisesFisher"):
-        values = jnp.array(FAMILIES[name][1][:3], jnp.float32)
-        out = jax.jit(jax.vmap(lambda p: FAMILIES[name][0](p).sample(jax.random.key(0), (8,))))(values)
+        entry = registry.BY_NAME[name]
+        values = jnp.array([case.params[0] for case in entry.cases[:3]], jnp.float32)
+        out = jax.jit(jax.vmap(lambda p: entry.make(p).sample(jax.random.key(0), (8,))))(values)
         assert out.shape == (3, 8, 3) and np.all(np.isfinite(out))
 
 
@@ -301,3 +199,31 @@ def test_sampler_is_a_pytree_with_parameters_as_leaves():
     leaves = jax.tree_util.tree_leaves(js.Oriented(js.PhongLobe(2.0), jnp.array([0.0, 1.0, 0.0])))
     assert any(np.ndim(l) == 0 and float(l) == 2.0 for l in leaves)
     assert len(jax.tree_util.tree_leaves(js.UniformCone(0.5))) == 1
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_phong_gradients_at_1e7_and_u_next_to_one(dtype):
+    # The sharpest lobe at the last representable u: the derivative in n of the sample and of its
+    # density are finite, and match the closed forms d(1 - μ)/dn and d log p/dn.
+    with jax.enable_x64(dtype == "float64"):
+        dt = jnp.dtype(dtype)
+        u = jnp.asarray([1.0 - 2.0 ** -24, 0.25], dt)
+        n = jnp.asarray(1e7, dt)
+
+        def one_minus_mu_and_log_pdf(n):
+            x, p = js.PhongLobe(n).warp_with_pdf(u)
+            return 1.0 - x[2], jnp.log(p)
+
+        for transform in (jax.jacfwd, jax.jacrev):
+            d_t, d_log_p = jax.jit(transform(one_minus_mu_and_log_pdf))(n)
+            log_xi = np.log1p(-(1.0 - 2.0 ** -24))
+            n64 = 1e7
+            # 1 - μ = -expm1(L/(n+1)), L = log ξ: d/dn = expm1'(·) L/(n+1)² = e^{L/(n+1)} L/(n+1)².
+            expected_t = np.exp(log_xi / (n64 + 1)) * log_xi / (n64 + 1) ** 2
+            # log p = log(n+1) - log 2π + n L/(n+1): d/dn = 1/(n+1) + L/(n+1)².
+            expected_log_p = 1.0 / (n64 + 1) + log_xi / (n64 + 1) ** 2
+            np.testing.assert_allclose(float(d_log_p), expected_log_p, rtol=1e-4)
+            if dtype == "float64":
+                np.testing.assert_allclose(float(d_t), expected_t, rtol=1e-6)
+            else:
+                assert np.isfinite(float(d_t))

@@ -1,4 +1,9 @@
-"""Discrete: CDF search and alias table on {0, ..., K-1}, with remainders, zero weights and huge tables."""
+"""Discrete: CDF search and alias table on {0, ..., K-1}, with remainders, zero weights and huge tables.
+
+The contract (normalization, chi-square, support, finite values and gradients, both methods, tables
+of 10^6 weights) is `test_contract.py`, over the entries of `registry.py`; here what is particular
+to finite sets.
+"""
 
 from __future__ import annotations
 
@@ -9,19 +14,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import WrongWarp, check_finite_at_edges, run_chi2
+import registry
+from helpers import WrongWarp
 from jaxsample.samplers.discrete import Discrete, build_alias_table
-from jaxsample.checks.sampler_checks import normalization
+from jaxsample.checks.sampler_checks import chi2_test, normalization
 
-# Chi-square tests in this file, run as one family at overall false-failure rate 1e-6.
-N_CHI2 = 7
 METHODS = ("cdf", "alias")
-
-_rng = np.random.default_rng(9)
-SMALL = np.array([0.0, 3.0, 1.0, 0.0, 0.5, 2.0, 0.0, 1.5])
-HUGE = _rng.random(10**6)
-HUGE[_rng.random(10**6) < 0.3] = 0.0
-HUGE[:1000] = 0.0  # a leading run of zeros: u = 0 must not select them
+SMALL = registry.WEIGHTS
+HUGE = registry.HUGE_WEIGHTS  # a leading run of zeros: u = 0 must not select them
 
 _warp_with_remainder = jax.jit(lambda s, u: s.warp_with_remainder(u))
 _sample = jax.jit(lambda s, key: s.sample(key, (100_000,)))
@@ -33,26 +33,12 @@ def _huge(method, cache={}):
     return cache[method]
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_normalization(method):
-    for weights in (np.array([2.5]), SMALL):
-        assert abs(normalization(Discrete(weights, method)) - 1.0) < 1e-6
-    assert abs(normalization(_huge(method)) - 1.0) < 1e-6
-
-
-def test_chi2_passes():
-    keys = iter(jax.random.split(jax.random.key(1), 5))
-    for method in METHODS:
-        assert run_chi2(Discrete(SMALL, method), next(keys), N_CHI2).passed
-        assert run_chi2(_huge(method), next(keys), N_CHI2).passed
-    assert run_chi2(Discrete(np.ones(1), "cdf"), next(keys), N_CHI2).passed
-
-
 def test_chi2_fails_for_wrong_weights():
     wrong = SMALL.copy()
     wrong[1] *= 1.1  # outcome 1 about 6 % too likely
-    # At the suite's sample size and by a margin (p < 1e-15; seen over keys: 1e-32 to 1e-51).
-    result = run_chi2(WrongWarp(Discrete(SMALL), Discrete(wrong, "alias")), jax.random.key(2), N_CHI2)
+    # At the contract's settings for the entry and by a margin (p < 1e-15; seen over keys: 1e-32 to 1e-51).
+    result = chi2_test(WrongWarp(Discrete(SMALL), Discrete(wrong, "alias")), jax.random.key(2),
+                       **registry.chi2_settings("Discrete-cdf"))
     assert not result.passed and result.p_value < 1e-15, result
 
 
@@ -96,12 +82,6 @@ def test_remainder_is_uniform_within_each_outcome(method):
         r = np.sort(remainder[outcome == i])
         # Kolmogorov distance to U(0, 1) of a deterministic, nearly even grid.
         assert np.max(np.abs(r - (np.arange(len(r)) + 0.5) / len(r))) < 2e-3, i
-
-
-@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
-def test_finite_at_edges(dtype):
-    with jax.enable_x64(dtype == jnp.float64):
-        check_finite_at_edges(Discrete, (SMALL,), dtype, point=np.int32(2))
 
 
 def test_invalid_weights_raise():

@@ -1,4 +1,11 @@
-"""Exponential, TruncatedExponential, Power and PiecewiseConstant1D/2D."""
+"""What is particular to Exponential, TruncatedExponential, Power and PiecewiseConstant1D/2D;
+their contract (normalization, chi-square, inverse, Jacobian, support, finite values and gradients
+at the hard cases, huge tables) is `test_contract.py`, over the entries of `registry.py`.
+
+Here: normalization over the parameter ranges, wrong samplers the chi-square test rejects (at the
+contract's settings for the entry they imitate), exact values near the ends, zero bins, parameter
+errors and jit/vmap over parameters.
+"""
 
 from __future__ import annotations
 
@@ -9,59 +16,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import WrongWarp, check_finite_at_edges, run_chi2
+import registry
+from helpers import WrongWarp
 from jaxsample.samplers.exponential import Exponential, TruncatedExponential
 from jaxsample.samplers.piecewise import PiecewiseConstant1D, PiecewiseConstant2D
 from jaxsample.samplers.power import Power
-from jaxsample.checks.sampler_checks import inverse_error, jacobian_error, normalization
+from jaxsample.checks.sampler_checks import chi2_test, normalization
 
-# Chi-square tests in this file, run as one family at overall false-failure rate 1e-6.
-N_CHI2 = 14
-# Samples per chi-square test: the exponentials and power laws get 10^6, where a rate 2 % off is
-# rejected with p < 1e-45 for every key tried (at 10^5 it passed for most keys, at 4·10^5 for
-# one key in four); the tabulated samplers keep the default 10^5.
-CHI2_SAMPLES_PARAMETRIC = 1_000_000
-
-
-def chi2_samples(name):
-    return CHI2_SAMPLES_PARAMETRIC if name.split("-")[0] in ("exponential", "truncated", "power") else 100_000
-
-RATES = (1e-6, 1e-2, 1.0, 1e3, 1e6)
-EXPONENTS = (0.0, 0.5, 3.0, 1e3, 1e6)
-
-_rng = np.random.default_rng(5)
-TABLE = _rng.random(257)
-TABLE[::5] = 0.0
-TABLE_2D = _rng.random((24, 40))
-TABLE_2D[3] = 0.0
-TABLE_2D[:, 7] = 0.0
-
-jit_inverse_error = jax.jit(inverse_error)
-jit_jacobian_error = jax.jit(jacobian_error)
-
-
-def _samplers():
-    return {
-        **{f"exponential-{r:g}": Exponential(r) for r in RATES},
-        **{f"truncated-{r:g}": TruncatedExponential(r, 2.5) for r in RATES},
-        **{f"power-{n:g}": Power(n) for n in EXPONENTS},
-        "power-max-5": Power(5, method="max"),
-        "piecewise-1d": PiecewiseConstant1D(TABLE),
-        "piecewise-1d-single": PiecewiseConstant1D(np.array([2.0])),
-        "piecewise-2d": PiecewiseConstant2D(TABLE_2D),
-    }
-
-
-@pytest.mark.parametrize("name", list(_samplers()))
-def test_normalization(name):
-    assert abs(normalization(_samplers()[name]) - 1.0) < 1e-6
-
-
-def test_normalization_of_huge_tables_with_zeros():
-    values = _rng.random(10**6)
-    values[_rng.random(10**6) < 0.3] = 0.0
-    assert abs(normalization(PiecewiseConstant1D(values)) - 1.0) < 1e-6
-    assert abs(normalization(PiecewiseConstant2D(values.reshape(1000, 1000))) - 1.0) < 1e-6
+TABLE, TABLE_2D = registry.TABLE, registry.TABLE_2D
 
 
 @settings(derandomize=True, deadline=None, max_examples=20)
@@ -73,46 +35,17 @@ def test_normalization_over_parameter_range(log_rate, log_t_max, log_exponent):
     assert abs(normalization(Power(exponent)) - 1.0) < 1e-6
 
 
-def test_chi2_passes_float32():
-    names = ["exponential-1e-06", "exponential-1", "exponential-1e+06", "truncated-1e-06", "truncated-1",
-             "truncated-1e+06", "power-0.5", "power-1000", "power-max-5", "piecewise-1d", "piecewise-2d"]
-    samplers = _samplers()
-    for key, name in zip(jax.random.split(jax.random.key(1), len(names)), names):
-        result = run_chi2(samplers[name], key, N_CHI2, n_samples=chi2_samples(name))
-        assert result.passed, (name, result)
-
-
-def test_chi2_passes_float64_at_extremes():
-    # Power(1e6) puts its mass within 1e-5 of x = 1, which float32 resolves only to 6e-8: its
-    # samples are quantised to a few dozen values there, so the sharp end is tested in float64.
-    with jax.enable_x64(True):
-        for key, sampler in zip(jax.random.split(jax.random.key(2), 2), [Power(1e6), TruncatedExponential(1e6, 1e-3)]):
-            result = run_chi2(sampler, key, N_CHI2)
-            assert result.passed, (sampler, result)
-
-
 def test_chi2_fails_for_wrong_samplers():
     keys = jax.random.split(jax.random.key(3), 2)
-    # Rate off by 2 %: the statistic's excess over its mean grows like N·(0.02)². At the sample
-    # size the passing tests above use, the rejection has a wide margin: p below 1e-20 where the
-    # Šidák threshold is 7e-8 (seen over keys: 1e-49 to 1e-75), so it is not one lucky key.
+    # Rate off by 2 %: the statistic's excess over its mean grows like N·(0.02)². At the contract's
+    # sample size for these entries (10^6), the rejection has a wide margin: p below 1e-20 where
+    # the Šidák threshold is 1.6e-8 (seen over keys: 1e-49 to 1e-75), so it is not one lucky key.
     wrong_rate = WrongWarp(Exponential(1.0), Exponential(1.02))
-    result = run_chi2(wrong_rate, keys[0], N_CHI2, n_samples=CHI2_SAMPLES_PARAMETRIC)
+    result = chi2_test(wrong_rate, keys[0], **registry.chi2_settings("Exponential"))
     assert not result.passed and result.p_value < 1e-20, result
     wrong_exponent = WrongWarp(Power(3.0), Power(3.15))
-    result = run_chi2(wrong_exponent, keys[1], N_CHI2, n_samples=CHI2_SAMPLES_PARAMETRIC)
+    result = chi2_test(wrong_exponent, keys[1], **registry.chi2_settings("Power"))
     assert not result.passed and result.p_value < 1e-20, result
-
-
-@pytest.mark.parametrize("name", ["exponential-1e-06", "exponential-1", "exponential-1e+06", "truncated-1e-06",
-                                  "truncated-1", "truncated-1e+06", "power-0", "power-3", "power-1000",
-                                  "piecewise-1d", "piecewise-2d"])
-def test_inverse_and_jacobian(name):
-    sampler = _samplers()[name]
-    u = jax.random.uniform(jax.random.key(4), (2048, sampler.uniform_dims), minval=1e-4, maxval=1 - 1e-4)
-    assert float(jnp.max(jit_inverse_error(sampler, u))) < 1e-4
-    if not name.startswith("piecewise"):  # piecewise warps are smooth within bins only
-        assert float(jnp.max(jit_jacobian_error(sampler, u))) < 1e-3
 
 
 def test_exponential_exact_near_zero_and_finite_near_one():
@@ -124,18 +57,6 @@ def test_exponential_exact_near_zero_and_finite_near_one():
     # The truncated form tends to a uniform distance as rate · t_max -> 0.
     t = TruncatedExponential(1e-6, 2.0).warp(jnp.array([[0.25], [0.5], [0.75]]))
     np.testing.assert_allclose(np.asarray(t), [0.5, 1.0, 1.5], rtol=1e-5)
-
-
-@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
-def test_finite_values_and_gradients_at_extremes(dtype):
-    with jax.enable_x64(dtype == jnp.float64):
-        for rate in (1e-6, 1e6):
-            check_finite_at_edges(Exponential, (rate,), dtype, point=0.5 / rate)
-            check_finite_at_edges(TruncatedExponential, (rate, 3.0), dtype, point=1.0)
-        for exponent in (0.0, 1e6):
-            check_finite_at_edges(Power, (exponent,), dtype, point=0.5)
-        check_finite_at_edges(PiecewiseConstant1D, (TABLE,), dtype, point=0.3)
-        check_finite_at_edges(PiecewiseConstant2D, (TABLE_2D,), dtype, point=[0.3, 0.6])
 
 
 def test_zero_bins_never_sampled():

@@ -1,4 +1,11 @@
-"""UniformDisk, UniformTriangle and UniformBox: normalization, chi-square, inverses, Jacobians, edges."""
+"""What is particular to UniformDisk, UniformTriangle and UniformBox; their contract
+(normalization, chi-square, inverse, Jacobian, support, finite values and gradients at the hard
+cases, thin triangles in float64) is `test_contract.py`, over the entries of `registry.py`.
+
+Here: wrong samplers the chi-square test rejects (at the contract's settings for the entry they
+imitate), the concentric map's derivatives on its axes and at its centre, parameter errors,
+jit/vmap over vertices, and random triangles.
+"""
 
 from __future__ import annotations
 
@@ -9,25 +16,21 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import WrongWarp, assert_finite, check_finite_at_edges, edge_uniforms, run_chi2
+import registry
+from helpers import WrongWarp
+from jaxsample import domains
+from jaxsample.samplers import concentric
 from jaxsample.samplers.box import UniformBox
 from jaxsample.samplers.disk import UniformDisk
-from jaxsample.checks.sampler_checks import inverse_error, jacobian_error, normalization
+from jaxsample.samplers.triangle import UniformTriangle
+from jaxsample.checks.sampler_checks import chi2_test, inverse_error, normalization
 from jaxsample.samplers.transformed import Transformed
 from jaxsample.checks.domains import Disk
 
-# Chi-square tests in this file, run as one family at overall false-failure rate 1e-6.
-N_CHI2 = 8
-
-TRIANGLE_2D = ([0.0, 0.0], [1.0, 0.2], [0.3, 1.0])
-TRIANGLE_3D = ([0.0, 0.0, 1.0], [1.0, 0.2, 0.0], [0.3, 1.0, 2.0])
-# Area 1e-12 of |edge|², tilted so that no coordinate axis helps.
-THIN_2D = ([0.0, 0.0], [1.0, 1.0], [0.5, 0.5 + 2e-12])
-THIN_3D = ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.5, 0.5 + 2e-12, 0.5])
+TRIANGLE_2D = registry.TRIANGLE_2D
 
 
 def triangle(vertices, dtype=None):
-    from jaxsample.samplers.triangle import UniformTriangle
     return UniformTriangle(*(jnp.asarray(v, dtype) for v in vertices))
 
 
@@ -40,143 +43,49 @@ def _disk_to_polar(y):
     return jnp.stack([jnp.sum(y * y) ** (1 / 0.92), jnp.mod(jnp.arctan2(y[1], y[0]), 2 * np.pi)])
 
 
-def _concentric():
-    return UniformDisk("concentric")
-
-
-def _polar():
-    return UniformDisk("polar")
-
-
-def _rejection():
-    return UniformDisk("rejection", tries=3)
-
-
-_DISK_MAKERS = {"concentric": _concentric, "polar": _polar, "rejection": _rejection}
-
-SAMPLERS = {
-    "disk-concentric": lambda: UniformDisk(),
-    "disk-polar": lambda: UniformDisk("polar"),
-    "disk-rejection": lambda: UniformDisk("rejection", tries=4),
-    "triangle-2d": lambda: triangle(TRIANGLE_2D),
-    "triangle-3d": lambda: triangle(TRIANGLE_3D),
-    "box": lambda: UniformBox(jnp.array([-1.0, 0.5]), jnp.array([2.0, 0.75])),
-}
-
-
-@pytest.mark.parametrize("name", SAMPLERS)
-def test_normalization(name):
-    assert abs(normalization(SAMPLERS[name]()) - 1.0) < 1e-6
-
-
-@pytest.mark.parametrize("vertices", [THIN_2D, THIN_3D])
-def test_thin_triangle_normalization_and_samples(vertices):
-    with jax.enable_x64(True):
-        sampler = triangle(vertices, jnp.float64)
-        assert abs(normalization(sampler) - 1.0) < 1e-6
-        x, p = sampler.sample_with_pdf(jax.random.key(3), (2000,))
-        assert np.all(sampler.domain().contains(np.asarray(x)))
-        np.testing.assert_allclose(sampler.pdf(x), p, rtol=1e-12)
-
-
-def test_chi2_passes():
-    keys = jax.random.split(jax.random.key(10), 6)
-    for key, name in zip(keys, SAMPLERS):
-        result = run_chi2(SAMPLERS[name](), key, N_CHI2)
-        assert result.passed, (name, result)
-
-
-def test_chi2_thin_triangle_float64():
-    with jax.enable_x64(True):
-        result = run_chi2(triangle(THIN_3D, jnp.float64), jax.random.key(11), N_CHI2)
-    assert result.passed, result
-
-
 def test_chi2_fails_for_wrong_samplers():
     truth = UniformDisk("polar")
     impostor = Transformed(UniformBox(jnp.array([0.0, 0.0]), jnp.array([1.0, 2 * np.pi])),
                            _shrunk_radius, _disk_to_polar, domain=Disk())
-    # At the suite's sample size (run_chi2's 10^5) and by a margin: p < 1e-15 where the threshold is
-    # 1.3e-7 (seen over keys: below 1e-80 for both wrong samplers here).
-    result = run_chi2(WrongWarp(truth, impostor), jax.random.key(12), N_CHI2)
+    # At the contract's settings for the disk (10^5 samples, 1.6e-8 per test) and by a margin:
+    # p < 1e-15 (seen over keys: below 1e-80 for both wrong samplers here).
+    result = chi2_test(WrongWarp(truth, impostor), jax.random.key(12), **registry.chi2_settings("UniformDisk-polar"))
     assert not result.passed and result.p_value < 1e-15, result
     # Vertex c pulled 5 % toward the centroid: samples stay inside, the density is wrong.
     a, b, c = (np.array(v) for v in TRIANGLE_2D)
     centroid = (a + b + c) / 3
     inner = triangle((a, b, c + 0.05 * (centroid - c)))
-    result = run_chi2(WrongWarp(triangle(TRIANGLE_2D), inner), jax.random.key(13), N_CHI2)
+    result = chi2_test(WrongWarp(triangle(TRIANGLE_2D), inner), jax.random.key(13),
+                       **registry.chi2_settings("UniformTriangle-2d"))
     assert not result.passed and result.p_value < 1e-15, result
 
 
-@pytest.mark.parametrize("name", ["disk-concentric", "disk-polar", "triangle-2d", "triangle-3d", "box"])
-def test_inverse_round_trip(name):
-    sampler = SAMPLERS[name]()
-    u = jax.random.uniform(jax.random.key(20), (4096, 2), minval=1e-3, maxval=1 - 1e-3)
-    assert float(jnp.max(inverse_error(sampler, u))) < 2e-4
-    with jax.enable_x64(True):
-        u64 = jnp.asarray(np.asarray(u), jnp.float64)
-        assert float(jnp.max(inverse_error(jax.tree_util.tree_map(lambda t: jnp.asarray(t, jnp.float64), sampler), u64))) < 1e-9
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_concentric_inverse_has_finite_gradients_on_the_axes_and_at_the_centre(dtype):
+    # disk_to_square itself (not only UniformDisk.inverse, which guards the centre) is finite there,
+    # and next to the centre at the smallest radius the float32 warp produces (2u - 1 = ±2^-24).
+    with jax.enable_x64(dtype == "float64"):
+        points = jnp.asarray(np.array([[0.0, 0.0], [0.5, 0.0], [0.0, 0.5], [-0.5, 0.0], [0.0, -0.5],
+                                       [0.3, 0.3], [2.0 ** -24, 0.0], [0.0, -2.0 ** -24]]), dtype)
 
+        def to_square(p):
+            return concentric.disk_to_square(p[..., 0], p[..., 1])
 
-@pytest.mark.parametrize("name", ["disk-concentric", "disk-polar", "triangle-2d", "triangle-3d", "box"])
-def test_jacobian_matches_density(name):
-    u = jax.random.uniform(jax.random.key(21), (2048, 2), minval=1e-3, maxval=1 - 1e-3)
-    assert float(jnp.max(jacobian_error(SAMPLERS[name](), u))) < 1e-3
-
-
-def test_concentric_gradient_finite_on_axes_and_centre():
-    disk = UniformDisk()
-    u = jnp.array([[0.5, 0.5], [0.5, 0.2], [0.5, 0.9], [0.2, 0.5], [0.9, 0.5], [0.3, 0.3], [0.0, 0.5]])
-
-    @jax.jit
-    def everything(v):
-        return (disk.warp(v), jax.vmap(jax.jacrev(disk.warp))(v), jax.grad(lambda w: jnp.sum(disk.warp(w) ** 3))(v),
-                jax.vmap(jax.jacrev(disk.inverse))(disk.warp(v)))
-
-    for dtype in (jnp.float32, jnp.float64):
-        with jax.enable_x64(dtype == jnp.float64):
-            assert_finite(everything(u.astype(dtype)), "concentric map, its gradients and its inverse's")
-
-
-@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
-@pytest.mark.parametrize("method", ["concentric", "polar", "rejection"])
-def test_disk_finite_at_edges(method, dtype):
-    with jax.enable_x64(dtype == jnp.float64):
-        check_finite_at_edges(_DISK_MAKERS[method], (), dtype)
-
-
-@pytest.mark.parametrize("dtype", [jnp.float32, jnp.float64])
-@pytest.mark.parametrize("vertices", [TRIANGLE_2D, TRIANGLE_3D])
-def test_triangle_finite_at_edges(vertices, dtype):
-    from jaxsample.samplers.triangle import UniformTriangle
-    centroid = np.mean(np.array(vertices), axis=0)
-    with jax.enable_x64(dtype == jnp.float64):
-        check_finite_at_edges(UniformTriangle, vertices, dtype, point=centroid)
-
-
-def test_thin_triangle_finite_float64():
-    from jaxsample.samplers.triangle import UniformTriangle
-    with jax.enable_x64(True):
-        check_finite_at_edges(UniformTriangle, THIN_3D, jnp.float64)
-
-
-def test_samples_inside_domain():
-    keys = jax.random.split(jax.random.key(30), len(SAMPLERS))
-    for key, name in zip(keys, SAMPLERS):
-        sampler = SAMPLERS[name]()
-        x = np.asarray(sampler.sample(key, (20_000,)))
-        assert np.all(sampler.domain().contains(x)), name
-        assert np.all(np.asarray(sampler.pdf(x)) > 0), name
-
-
-def test_rejection_disk_is_exactly_uniform_with_one_try():
-    # With one try the fall-through (probability 1 - π/4) uses the independent polar sample.
-    result = run_chi2(UniformDisk("rejection", tries=1), jax.random.key(31), N_CHI2)
-    assert result.passed, result
+        for transform in (jax.jacfwd, jax.jacrev):
+            jac = jax.jit(jax.vmap(transform(to_square)))(points)
+            assert np.all(np.isfinite(np.asarray(jac))), jac
+        # UniformDisk.inverse (disk_to_square with its guard) likewise, in both modes.
+        for transform in (jax.jacfwd, jax.jacrev):
+            jac = jax.jit(jax.vmap(transform(UniformDisk().inverse)))(points)
+            assert np.all(np.isfinite(np.asarray(jac))), jac
+        u = to_square(points)
+        np.testing.assert_allclose(np.asarray(u[0]), [0.5, 0.5])
+        # And the map round-trips through square_to_disk on the axes.
+        x, y, _ = concentric.square_to_disk(u)
+        np.testing.assert_allclose(np.stack([x, y], -1), points, atol=1e-6)
 
 
 def test_invalid_parameters_raise():
-    from jaxsample.samplers.triangle import UniformTriangle
     with pytest.raises(ValueError, match="'a', 'b', 'c'.*degenerate"):
         UniformTriangle(np.array([0.0, 0.0]), np.array([1.0, 1.0]), np.array([2.0, 2.0]))
     with pytest.raises(ValueError, match="degenerate"):
@@ -194,7 +103,6 @@ def test_invalid_parameters_raise():
 
 
 def test_jit_and_vmap_over_vertices():
-    from jaxsample.samplers.triangle import UniformTriangle
     keys = jax.random.split(jax.random.key(40), 2)
     c = jax.random.uniform(keys[0], (16, 3)) + jnp.array([0.0, 1.0, 0.0])
     u = jax.random.uniform(keys[1], (16, 2))
@@ -214,7 +122,6 @@ def test_jit_and_vmap_over_vertices():
 @settings(derandomize=True, deadline=None, max_examples=15)
 @given(st.lists(st.floats(-10.0, 10.0), min_size=9, max_size=9))
 def test_random_triangles(coordinates):
-    from jaxsample.samplers.triangle import UniformTriangle
     a, b, c = np.array(coordinates).reshape(3, 3)
     twice_area = np.linalg.norm(np.cross(b - a, c - a))
     longest = max(np.sum((b - a) ** 2), np.sum((c - a) ** 2), np.sum((c - b) ** 2))
@@ -225,8 +132,8 @@ def test_random_triangles(coordinates):
     with jax.enable_x64(True):
         sampler = UniformTriangle(jnp.asarray(a), jnp.asarray(b), jnp.asarray(c))
         assert abs(normalization(sampler) - 1.0) < 1e-6
-        u = edge_uniforms(2, jnp.float64) * 0.998 + 0.001
+        u = registry.edge_uniforms(2, jnp.float64) * 0.998 + 0.001
         assert float(jnp.max(inverse_error(sampler, u))) < 1e-6
         x = np.asarray(sampler.warp(u))
-        assert np.all(sampler.domain().contains(x))
+        assert np.all(domains.contains(sampler.domain(), x))
 

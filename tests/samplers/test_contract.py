@@ -1,0 +1,281 @@
+"""The sampler contract, run on every entry of `registry.ENTRIES` (every exported sampler, at its
+hard cases):
+
+- normalization: ∫ pdf dμ = 1 within 1e-6, by the domain's float64 quadrature;
+- chi-square: samples against the density (one family at false-failure rate 1e-6, see registry);
+- inverse: inverse(warp(u)) = u, and the density is the reciprocal of the warp's Jacobian,
+  |p(T(u)) sqrt(det JᵀJ) - 1| small, for every warp that is a bijection;
+- samples lie in the support, with the density `pdf` gives them;
+- values, densities and their forward- and reverse-mode derivatives (in the parameters, in u and
+  in x) finite at the hard u in {0, 0.5, 1 - 2^-24}, in float32 and float64.
+
+Each check names the entry it ran on; the family files keep what is particular to a sampler
+(its constructors, errors, closed forms, and a wrong sampler that the chi-square test rejects).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxsample as js
+from jaxsample import domains
+from jaxsample.checks.sampler_checks import chi2_test, inverse_error, jacobian_error, normalization
+
+import registry
+from registry import CHI2_CASES, ENTRIES, cast_params, edge_uniforms
+
+ENTRY_IDS = [entry.name for entry in ENTRIES]
+
+
+def _case_id(case) -> str:
+    def short(value):
+        if isinstance(value, js.Sampler):
+            return type(value).__name__
+        array = np.asarray(value)
+        return f"{array.item():g}" if array.size == 1 else f"{array.shape}"
+    parts = [short(p) for p in case.params if not isinstance(p, (tuple, list)) or len(p) <= 3]
+    return ",".join(parts) + ("-x64" if case.x64 else "")
+
+
+def _precision(case, dtype="float32"):
+    """(x64 flag, dtype) a case is checked in."""
+    x64 = case.x64 or dtype == "float64"
+    return x64, jnp.float64 if x64 else jnp.float32
+
+
+def test_every_exported_sampler_is_in_the_registry():
+    exported = {name for name in js.__all__ if isinstance(getattr(js, name), type)
+                and issubclass(getattr(js, name), js.Sampler) and getattr(js, name) is not js.Sampler}
+    listed = {type(entry.build(case)).__name__ for entry in ENTRIES for case in entry.cases if not case.x64}
+    assert exported - listed == set(), f"exported samplers missing from tests/samplers/registry.py: {exported - listed}"
+    assert listed - exported == set(), f"registry entries that jaxsample does not export: {listed - exported}"
+
+
+@pytest.mark.parametrize("entry", ENTRIES, ids=ENTRY_IDS)
+def test_normalization_within_1e_6(entry):
+    for case in entry.cases:
+        x64, dtype = _precision(case)
+        with jax.enable_x64(x64):
+            total = normalization(entry.build(case, dtype))
+        assert abs(total - 1.0) < 1e-6, (entry.name, _case_id(case), total)
+
+
+@pytest.mark.parametrize("index", range(len(CHI2_CASES)),
+                         ids=[f"{e.name}-{_case_id(c)}" for e, c in CHI2_CASES])
+def test_chi_square_goodness_of_fit(index):
+    entry, case = CHI2_CASES[index]
+    x64, dtype = _precision(case)
+    with jax.enable_x64(x64):
+        result = chi2_test(entry.build(case, dtype), jax.random.fold_in(jax.random.key(20261201), index),
+                           **registry.chi2_settings(entry.name))
+    assert result.passed, (entry.name, _case_id(case), result)
+
+
+def _uniforms(n, dims, margin, dtype, seed):
+    """n points of [margin, 1 - margin]^dims (NumPy, so that drawing them compiles nothing)."""
+    u = np.random.default_rng(seed).random((n, dims))
+    return jnp.asarray(margin + (1.0 - 2.0 * margin) * u, dtype)
+
+
+@jax.jit
+def _round_trip(sampler, u):
+    """Per point: the public check's max |inverse(warp(u)) - u| (periodic coordinates modulo 1),
+    and the error of the first coordinate alone."""
+    return inverse_error(sampler, u), jnp.abs(sampler.inverse(sampler.warp(u))[..., 0] - u[..., 0])
+
+
+_jit_jacobian_error = jax.jit(jacobian_error)
+
+INVERTIBLE = [entry for entry in ENTRIES if entry.inverse is not None]
+
+
+def _precisions(entry, case, tol32, tol64):
+    """(x64, dtype, tolerance, name) for each precision a case is checked in."""
+    for dtype_name, tolerance in (("float32", tol32), ("float64", tol64)):
+        if tolerance is not None and not (case.x64 and dtype_name == "float32"):
+            yield (*_precision(case, dtype_name), tolerance, dtype_name)
+
+
+@pytest.mark.parametrize("entry", INVERTIBLE, ids=[e.name for e in INVERTIBLE])
+def test_inverse_round_trip(entry):
+    check = entry.inverse
+    for case in (c for c in entry.cases if c.inverse):
+        for x64, dtype, tolerance, dtype_name in _precisions(entry, case, check.tol32, check.tol64):
+            with jax.enable_x64(x64):
+                sampler = entry.build(case, dtype)
+                u = _uniforms(check.n, sampler.uniform_dims, check.margin, dtype, 3)
+                if check.edges:
+                    u = jnp.concatenate([u, edge_uniforms(sampler.uniform_dims, dtype)])
+                error, first = (np.asarray(e) for e in _round_trip(sampler, u))
+            # Where u₀ = 0 is a pole of a periodic coordinate (sin θ = 0, r = 0) the azimuth is not
+            # recoverable: the warp is a bijection only off that set of measure zero, so there
+            # only the first coordinate is compared.
+            pole = (np.asarray(u[:, 0]) == 0) & bool(sampler.periodic_dims)
+            worst = float(np.max(np.where(pole, first, error)))
+            assert worst < tolerance, (entry.name, _case_id(case), dtype_name, worst)
+
+
+@pytest.mark.parametrize("entry", INVERTIBLE, ids=[e.name for e in INVERTIBLE])
+def test_density_is_one_over_the_jacobian_of_the_warp(entry):
+    check = entry.inverse
+    for case in (c for c in entry.cases if c.inverse):
+        for x64, dtype, tolerance, dtype_name in _precisions(entry, case, check.jacobian32, check.jacobian64):
+            with jax.enable_x64(x64):
+                sampler = entry.build(case, dtype)
+                # Away from the ends, where p -> 0 and J -> inf (the horizon).
+                u = _uniforms(check.n, sampler.uniform_dims, check.jacobian_margin, dtype, 4)
+                worst = float(np.max(np.asarray(_jit_jacobian_error(sampler, u))))
+            assert worst < tolerance, (entry.name, _case_id(case), dtype_name, worst)
+
+
+@jax.jit
+def _samples_and_densities(sampler, u):
+    x, p = sampler.warp_with_pdf(u)
+    return x, p, sampler.pdf(x), sampler.log_pdf(x)
+
+
+@pytest.mark.parametrize("entry", ENTRIES, ids=ENTRY_IDS)
+def test_samples_lie_in_the_support_with_the_stated_density(entry):
+    """20 000 warped points (the chi-square test checks those of `sample`): inside the domain, with
+    a positive density, and `pdf` and `log_pdf` there agree with the density `warp_with_pdf` gives."""
+    for number, case in enumerate(entry.cases):
+        if not case.samples:
+            continue
+        x64, dtype = _precision(case)
+        with jax.enable_x64(x64):
+            sampler = entry.build(case, dtype)
+            x, p, pdf, log_pdf = (np.asarray(a) for a in _samples_and_densities(
+                sampler, _uniforms(20_000, sampler.uniform_dims, 0.0, dtype, number)))
+        assert x.shape == (20_000,) + tuple(sampler.event_shape), (entry.name, x.shape)
+        assert x.dtype == (dtype if np.issubdtype(x.dtype, np.floating) else np.int32), (entry.name, x.dtype)
+        assert np.all(domains.contains(sampler.domain(), x)), (entry.name, _case_id(case))
+        assert np.all(p > 0), (entry.name, _case_id(case))
+        rtol = entry.pdf_rtol64 if x64 else entry.pdf_rtol
+        np.testing.assert_allclose(pdf, p, rtol=rtol, err_msg=entry.name)
+        np.testing.assert_allclose(log_pdf, np.log(p), atol=2 * rtol, err_msg=entry.name)
+
+
+# ---------------------------------------------------------------------------------------------
+# Finite values and derivatives at the hard cases
+# ---------------------------------------------------------------------------------------------
+
+
+def _integrand(x):
+    """A fixed integrand touching every component of a sample (integer samples too)."""
+    x = jnp.ravel(x).astype(jnp.result_type(float))
+    return 1.5 + jnp.sum(x * jnp.linspace(0.3, 0.9, x.size, dtype=x.dtype))
+
+
+def _split(params):
+    """Floating leaves (differentiated), other array leaves (traced) and Python scalars (static)."""
+    leaves, treedef = jax.tree_util.tree_flatten(params)
+    kinds = tuple("float" if isinstance(leaf, (jax.Array, np.ndarray)) and jnp.issubdtype(leaf.dtype, jnp.inexact)
+                  else "array" if isinstance(leaf, (jax.Array, np.ndarray)) else "static" for leaf in leaves)
+    floats = [leaf for leaf, kind in zip(leaves, kinds) if kind == "float"]
+    arrays = [leaf for leaf, kind in zip(leaves, kinds) if kind == "array"]
+    statics = tuple(leaf for leaf, kind in zip(leaves, kinds) if kind == "static")
+    return (treedef, kinds, statics), floats, arrays
+
+
+def _join(layout, floats, arrays):
+    treedef, kinds, statics = layout
+    sources = {"float": iter(floats), "array": iter(arrays), "static": iter(statics)}
+    return jax.tree_util.tree_unflatten(treedef, [next(sources[kind]) for kind in kinds])
+
+
+def _along(tree):
+    """A direction with every component nonzero: a NaN or inf in any partial derivative shows in
+    the derivative along it (forward mode), as it does in the gradient of a sum (reverse mode),
+    so one derivative per mode finds what the whole Jacobian would."""
+    return jax.tree_util.tree_map(lambda a: jnp.full_like(a, 0.7), tree)
+
+
+# Compilation, not execution, is the cost of these checks (one program per entry and dtype,
+# whatever the parameter values). XLA's backend optimisation level may change a last bit (by
+# contracting a multiply and an add), never whether a value is finite, which is all they ask; at
+# level 0 the programs compile in about two thirds of the time.
+@functools.partial(jax.jit, static_argnums=(0, 1), compiler_options={"xla_backend_optimization_level": 0})
+def _all_derivatives(make, layout, floats, arrays, u, points):
+    """Values, and forward- and reverse-mode derivatives of everything a gradient can flow through.
+
+    One scalar per u gathers the estimator's value f(x)/p(x) (through warp_with_pdf, attached) and
+    pdf and log_pdf re-evaluated at the warped sample: a NaN or inf in any of their derivatives
+    would show in its derivative (all terms enter with nonzero weights). A second function gives
+    pdf and log_pdf at fixed points of the domain, differentiated in the parameters and in x
+    (integer points, of a finite set, in the parameters only).
+    """
+
+    def build(floats):
+        return make(*_join(layout, floats, arrays))
+
+    def per_sample(floats, u):
+        s = build(floats)
+        x = s.warp(u)
+        log_p = s.log_pdf(x)  # -inf where the density is 0 (Malley's corners: the horizon)
+        return (js.integrand_values(_integrand, s, u[None])[0] + 1e-3 * s.pdf(x)
+                + 1e-3 * jnp.where(jnp.isfinite(log_p), log_p, 0.0))
+
+    def densities(floats, x):
+        s = build(floats)
+        return s.pdf(x), s.log_pdf(x)
+
+    def densities_summed(floats, x):
+        return sum(densities(floats, x))
+
+    sampler = build(floats)
+    out = {"sample": jax.vmap(sampler.warp_with_pdf)(u),
+           "pdf at the samples": jax.vmap(lambda u: sampler.pdf(sampler.warp(u)))(u),
+           "densities": jax.vmap(densities, (None, 0))(floats, points),
+           "per-sample": jax.vmap(per_sample, (None, 0))(floats, u),
+           "d per-sample/d(params, u) fwd": jax.vmap(
+               lambda u: jax.jvp(per_sample, (floats, u), _along((floats, u)))[1])(u),
+           "d per-sample/d(params, u) rev": jax.vmap(jax.grad(per_sample, (0, 1)), (None, 0))(floats, u)}
+    if jnp.issubdtype(points.dtype, jnp.inexact):
+        out["d density/d(params, x) fwd"] = jax.vmap(
+            lambda x: jax.jvp(densities, (floats, x), _along((floats, x)))[1])(points)
+        out["d density/d(params, x) rev"] = jax.vmap(jax.grad(densities_summed, (0, 1)), (None, 0))(floats, points)
+    else:
+        out["d density/d(params) fwd"] = jax.vmap(
+            lambda x: jax.jvp(lambda f: densities(f, x), (floats,), (_along(floats),))[1])(points)
+        out["d density/d(params) rev"] = jax.vmap(jax.grad(densities_summed), (None, 0))(floats, points)
+    return out
+
+
+GRADIENT_CASES = [(entry, dtype) for entry in ENTRIES for dtype in ("float32", "float64")
+                  if any(c.gradients and (dtype == "float64" or not c.x64) for c in entry.cases)]
+
+
+@pytest.mark.parametrize("entry,dtype", GRADIENT_CASES, ids=[f"{e.name}-{d}" for e, d in GRADIENT_CASES])
+def test_values_and_derivatives_are_finite_at_the_hard_cases(entry, dtype):
+    for case in entry.cases:
+        if not case.gradients or (case.x64 and dtype == "float32"):
+            continue
+        x64, dt = _precision(case, dtype)
+        with jax.enable_x64(x64):
+            params = cast_params(case.params, dt)
+            layout, floats, arrays = _split(params)
+            dims = entry.make(*params).uniform_dims
+            points = np.asarray(entry.points)
+            points = jnp.asarray(points, dt if np.issubdtype(points.dtype, np.floating) else jnp.int32)
+            out = _all_derivatives(entry.make, layout, floats, arrays, edge_uniforms(dims, dt), points)
+        where = (entry.name, _case_id(case), dtype)
+        pdf_at_points, log_pdf_at_points = out.pop("densities")
+        assert np.all(np.isfinite(pdf_at_points)), (*where, "pdf at the fixed points", pdf_at_points)
+        # log_pdf is -inf outside the support, never NaN.
+        assert not np.any(np.isnan(log_pdf_at_points)), (*where, "log_pdf at the fixed points", log_pdf_at_points)
+        for name, tree in out.items():
+            for leaf in jax.tree_util.tree_leaves(tree):
+                leaf = np.asarray(leaf)
+                if np.issubdtype(leaf.dtype, np.inexact):
+                    assert np.all(np.isfinite(leaf)), (*where, name, leaf)
+        x, pdf = out["sample"]
+        pdf_again = np.asarray(out["pdf at the samples"])
+        if entry.positive_at_edges:
+            assert np.all(np.asarray(pdf) > 0) and np.all(pdf_again > 0), (*where, pdf, pdf_again)
+        else:  # a sample on the horizon may have density 0
+            assert np.all(np.asarray(pdf) >= 0) and np.all(pdf_again >= 0), (*where, pdf, pdf_again)
