@@ -14,3 +14,26 @@ settings.register_profile(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )
 settings.load_profile("ci")
+
+# pytest-xdist hands tests to its workers in collection order, so a long test collected last can
+# leave one worker running alone at the end. These (each over ~5 s on the 2-core machine, most of
+# it subprocesses and compilation) are collected first; the order of the rest is unchanged.
+LONG_TESTS_FIRST = (
+    "tests/report/test_report.py::test_tiny_report",
+    "tests/test_readme.py::test_readme_block_runs_outside_the_checkout",
+    "tests/estimators/test_multiprocess.py",
+    "tests/estimators/test_gradient_errors.py::test_leave_one_out_gradient_and_its_error_bar",
+    "tests/estimators/test_estimate.py::test_sharded_matches_single_device_in_subprocess",
+    "tests/scene/test_scene.py::test_exponent_gradient_is_finite_and_agrees_between_modes",
+    "tests/scene/test_scene.py::test_a_short_inverse_problem_run_reduces_the_loss",
+    "tests/scene/test_scene.py::test_every_strategy_is_unbiased",
+    "tests/samplers/test_one_dimensional.py::test_zero_bins_never_sampled",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    def rank(item):
+        return next((i for i, prefix in enumerate(LONG_TESTS_FIRST) if item.nodeid.startswith(prefix)),
+                    len(LONG_TESTS_FIRST))
+
+    items.sort(key=rank)  # stable: within a rank, collection order

@@ -190,9 +190,12 @@ def _join(layout, floats, arrays):
 
 def _along(tree):
     """A direction with every component nonzero: a NaN or inf in any partial derivative shows in
-    the derivative along it (forward mode), as it does in the gradient of a sum (reverse mode),
-    so one derivative per mode finds what the whole Jacobian would."""
+    the derivative along it, so one forward pass finds what the whole Jacobian would."""
     return jax.tree_util.tree_map(lambda a: jnp.full_like(a, 0.7), tree)
+
+
+def _finite_part(log_density):
+    return jnp.where(jnp.isfinite(log_density), log_density, 0.0)
 
 
 # Compilation, not execution, is the cost of these checks (one program per entry and dtype,
@@ -201,53 +204,57 @@ def _along(tree):
 # level 0 the programs compile in about two thirds of the time.
 @functools.partial(jax.jit, static_argnums=(0, 1), compiler_options={"xla_backend_optimization_level": 0})
 def _all_derivatives(make, layout, floats, arrays, u, points):
-    """Values, and forward- and reverse-mode derivatives of everything a gradient can flow through.
+    """Values and their forward- and reverse-mode derivatives, in the parameters and in u (or x).
 
-    One scalar per u gathers the estimator's value f(x)/p(x) (through warp_with_pdf, attached) and
-    pdf and log_pdf re-evaluated at the warped sample: a NaN or inf in any of their derivatives
-    would show in its derivative (all terms enter with nonzero weights). A second function gives
-    pdf and log_pdf at fixed points of the domain, differentiated in the parameters and in x
-    (integer points, of a finite set, in the parameters only).
+    At the rows of u: warp_with_pdf's sample and density, pdf and log_pdf re-evaluated at the
+    warped sample, and the estimator's value f(x)/p(x) (attached). At the fixed points: pdf and
+    log_pdf. Forward mode gives the derivative of each along a direction with no zero component;
+    reverse mode the gradient of their weighted sum (every term with a nonzero weight). Rows are
+    independent, so the derivatives in u are per row, and a non-finite derivative in the
+    parameters at any row shows in the sum over rows. Integer points (a finite set) are
+    differentiated in the parameters only.
     """
 
     def build(floats):
         return make(*_join(layout, floats, arrays))
 
-    def per_sample(floats, u):
+    def at_samples(floats, u):
         s = build(floats)
-        x = s.warp(u)
-        log_p = s.log_pdf(x)  # -inf where the density is 0 (Malley's corners: the horizon)
-        return (js.integrand_values(_integrand, s, u[None])[0] + 1e-3 * s.pdf(x)
-                + 1e-3 * jnp.where(jnp.isfinite(log_p), log_p, 0.0))
+        x, p = s.warp_with_pdf(u)
+        x_again = s.warp(u)
+        return (js.integrand_values(_integrand, s, u), x, p, s.pdf(x_again), s.log_pdf(x_again))
 
-    def densities(floats, x):
+    def at_samples_summed(floats, u):
+        value, x, p, pdf, log_pdf = at_samples(floats, u)
+        x = x.astype(value.dtype) if jnp.issubdtype(x.dtype, jnp.inexact) else jnp.zeros((), value.dtype)
+        return jnp.sum(value) + 1e-3 * (jnp.sum(x) + jnp.sum(p) + jnp.sum(pdf) + jnp.sum(_finite_part(log_pdf)))
+
+    def at_points(floats, x):
         s = build(floats)
         return s.pdf(x), s.log_pdf(x)
 
-    def densities_summed(floats, x):
-        return sum(densities(floats, x))
+    def at_points_summed(floats, x):
+        pdf, log_pdf = at_points(floats, x)
+        return jnp.sum(pdf) + jnp.sum(_finite_part(log_pdf))
 
-    sampler = build(floats)
-    out = {"sample": jax.vmap(sampler.warp_with_pdf)(u),
-           "pdf at the samples": jax.vmap(lambda u: sampler.pdf(sampler.warp(u)))(u),
-           "densities": jax.vmap(densities, (None, 0))(floats, points),
-           "per-sample": jax.vmap(per_sample, (None, 0))(floats, u),
-           "d per-sample/d(params, u) fwd": jax.vmap(
-               lambda u: jax.jvp(per_sample, (floats, u), _along((floats, u)))[1])(u),
-           "d per-sample/d(params, u) rev": jax.vmap(jax.grad(per_sample, (0, 1)), (None, 0))(floats, u)}
+    values, tangents = jax.jvp(at_samples, (floats, u), _along((floats, u)))
+    out = {"f(x)/p(x), x, p, pdf(x), log_pdf(x) at u": values,
+           "their derivatives along (params, u)": tangents,
+           "gradient of their sum in (params, u)": jax.grad(at_samples_summed, (0, 1))(floats, u)}
     if jnp.issubdtype(points.dtype, jnp.inexact):
-        out["d density/d(params, x) fwd"] = jax.vmap(
-            lambda x: jax.jvp(densities, (floats, x), _along((floats, x)))[1])(points)
-        out["d density/d(params, x) rev"] = jax.vmap(jax.grad(densities_summed, (0, 1)), (None, 0))(floats, points)
+        out["densities"], out["their derivatives along (params, x)"] = jax.jvp(
+            at_points, (floats, points), _along((floats, points)))
+        out["gradient of their sum in (params, x)"] = jax.grad(at_points_summed, (0, 1))(floats, points)
     else:
-        out["d density/d(params) fwd"] = jax.vmap(
-            lambda x: jax.jvp(lambda f: densities(f, x), (floats,), (_along(floats),))[1])(points)
-        out["d density/d(params) rev"] = jax.vmap(jax.grad(densities_summed), (None, 0))(floats, points)
+        out["densities"], out["their derivatives along params"] = jax.jvp(
+            lambda f: at_points(f, points), (floats,), (_along(floats),))
+        out["gradient of their sum in params"] = jax.grad(at_points_summed)(floats, points)
     return out
 
 
 GRADIENT_CASES = [(entry, dtype) for entry in ENTRIES for dtype in ("float32", "float64")
-                  if any(c.gradients and (dtype == "float64" or not c.x64) for c in entry.cases)]
+                  if (dtype == "float32" or entry.gradients64)
+                  and any(c.gradients and (dtype == "float64" or not c.x64) for c in entry.cases)]
 
 
 @pytest.mark.parametrize("entry,dtype", GRADIENT_CASES, ids=[f"{e.name}-{d}" for e, d in GRADIENT_CASES])
@@ -264,18 +271,20 @@ def test_values_and_derivatives_are_finite_at_the_hard_cases(entry, dtype):
             points = jnp.asarray(points, dt if np.issubdtype(points.dtype, np.floating) else jnp.int32)
             out = _all_derivatives(entry.make, layout, floats, arrays, edge_uniforms(dims, dt), points)
         where = (entry.name, _case_id(case), dtype)
-        pdf_at_points, log_pdf_at_points = out.pop("densities")
+        pdf_at_points, log_pdf_at_points = (np.asarray(a) for a in out.pop("densities"))
         assert np.all(np.isfinite(pdf_at_points)), (*where, "pdf at the fixed points", pdf_at_points)
         # log_pdf is -inf outside the support, never NaN.
         assert not np.any(np.isnan(log_pdf_at_points)), (*where, "log_pdf at the fixed points", log_pdf_at_points)
+        value, x, pdf, pdf_again, log_pdf_again = (np.asarray(a) for a in out.pop("f(x)/p(x), x, p, pdf(x), log_pdf(x) at u"))
+        assert not np.any(np.isnan(log_pdf_again)), (*where, "log_pdf at the samples", log_pdf_again)
+        for name, leaf in (("f(x)/p(x)", value), ("x", x), ("p", pdf), ("pdf(x)", pdf_again)):
+            assert np.all(np.isfinite(leaf)), (*where, name, leaf)
         for name, tree in out.items():
             for leaf in jax.tree_util.tree_leaves(tree):
                 leaf = np.asarray(leaf)
                 if np.issubdtype(leaf.dtype, np.inexact):
                     assert np.all(np.isfinite(leaf)), (*where, name, leaf)
-        x, pdf = out["sample"]
-        pdf_again = np.asarray(out["pdf at the samples"])
         if entry.positive_at_edges:
-            assert np.all(np.asarray(pdf) > 0) and np.all(pdf_again > 0), (*where, pdf, pdf_again)
+            assert np.all(pdf > 0) and np.all(pdf_again > 0), (*where, pdf, pdf_again)
         else:  # a sample on the horizon may have density 0
-            assert np.all(np.asarray(pdf) >= 0) and np.all(pdf_again >= 0), (*where, pdf, pdf_again)
+            assert np.all(pdf >= 0) and np.all(pdf_again >= 0), (*where, pdf, pdf_again)
