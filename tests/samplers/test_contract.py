@@ -94,43 +94,42 @@ _jit_jacobian_error = jax.jit(jacobian_error)
 INVERTIBLE = [entry for entry in ENTRIES if entry.inverse is not None]
 
 
-def _precisions(entry, case, tol32, tol64):
-    """(x64, dtype, tolerance, name) for each precision a case is checked in."""
-    for dtype_name, tolerance in (("float32", tol32), ("float64", tol64)):
-        if tolerance is not None and not (case.x64 and dtype_name == "float32"):
-            yield (*_precision(case, dtype_name), tolerance, dtype_name)
+def _invertible_cases(entry, tolerances):
+    """(case, sampler, dtype, tolerance, dtype name) for each case with an inverse and each of
+    float32 and float64 that has a tolerance; the body of the loop runs in that precision."""
+    for case in (c for c in entry.cases if c.inverse):
+        for dtype_name, tolerance in zip(("float32", "float64"), tolerances):
+            if tolerance is None or (case.x64 and dtype_name == "float32"):
+                continue
+            x64, dtype = _precision(case, dtype_name)
+            with jax.enable_x64(x64):
+                yield case, entry.build(case, dtype), dtype, tolerance, dtype_name
 
 
 @pytest.mark.parametrize("entry", INVERTIBLE, ids=[e.name for e in INVERTIBLE])
 def test_inverse_round_trip(entry):
     check = entry.inverse
-    for case in (c for c in entry.cases if c.inverse):
-        for x64, dtype, tolerance, dtype_name in _precisions(entry, case, check.tol32, check.tol64):
-            with jax.enable_x64(x64):
-                sampler = entry.build(case, dtype)
-                u = _uniforms(check.n, sampler.uniform_dims, check.margin, dtype, 3)
-                if check.edges:
-                    u = jnp.concatenate([u, edge_uniforms(sampler.uniform_dims, dtype)])
-                error, first = (np.asarray(e) for e in _round_trip(sampler, u))
-            # Where u₀ = 0 is a pole of a periodic coordinate (sin θ = 0, r = 0) the azimuth is not
-            # recoverable: the warp is a bijection only off that set of measure zero, so there
-            # only the first coordinate is compared.
-            pole = (np.asarray(u[:, 0]) == 0) & bool(sampler.periodic_dims)
-            worst = float(np.max(np.where(pole, first, error)))
-            assert worst < tolerance, (entry.name, _case_id(case), dtype_name, worst)
+    for case, sampler, dtype, tolerance, dtype_name in _invertible_cases(entry, (check.tol32, check.tol64)):
+        u = _uniforms(check.n, sampler.uniform_dims, check.margin, dtype, 3)
+        if check.edges:
+            u = jnp.concatenate([u, edge_uniforms(sampler.uniform_dims, dtype)])
+        error, first = (np.asarray(e) for e in _round_trip(sampler, u))
+        # Where u₀ = 0 is a pole of a periodic coordinate (sin θ = 0, r = 0) the azimuth is not
+        # recoverable: the warp is a bijection only off that set of measure zero, so there only
+        # the first coordinate is compared.
+        pole = (np.asarray(u[:, 0]) == 0) & bool(sampler.periodic_dims)
+        worst = float(np.max(np.where(pole, first, error)))
+        assert worst < tolerance, (entry.name, _case_id(case), dtype_name, worst)
 
 
 @pytest.mark.parametrize("entry", INVERTIBLE, ids=[e.name for e in INVERTIBLE])
 def test_density_is_one_over_the_jacobian_of_the_warp(entry):
     check = entry.inverse
-    for case in (c for c in entry.cases if c.inverse):
-        for x64, dtype, tolerance, dtype_name in _precisions(entry, case, check.jacobian32, check.jacobian64):
-            with jax.enable_x64(x64):
-                sampler = entry.build(case, dtype)
-                # Away from the ends, where p -> 0 and J -> inf (the horizon).
-                u = _uniforms(check.n, sampler.uniform_dims, check.jacobian_margin, dtype, 4)
-                worst = float(np.max(np.asarray(_jit_jacobian_error(sampler, u))))
-            assert worst < tolerance, (entry.name, _case_id(case), dtype_name, worst)
+    for case, sampler, dtype, tolerance, dtype_name in _invertible_cases(entry, (check.jacobian32, check.jacobian64)):
+        # Away from the ends, where p -> 0 and J -> inf (the horizon).
+        u = _uniforms(check.n, sampler.uniform_dims, check.jacobian_margin, dtype, 4)
+        worst = float(np.max(np.asarray(_jit_jacobian_error(sampler, u))))
+        assert worst < tolerance, (entry.name, _case_id(case), dtype_name, worst)
 
 
 @jax.jit
