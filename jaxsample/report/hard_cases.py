@@ -8,6 +8,8 @@ taken (absolute, or relative for values above 1) against the same computation in
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -41,29 +43,40 @@ def _probe(build, param, u):
     return jnp.sum(x) + p * 1e-6
 
 
+@functools.partial(jax.jit, static_argnums=0)
+def _float32_case(build, param, u):
+    """Sample, density, log-density at the sample, and the per-point gradients in (param, u): one
+    compiled program per sampler, the parameter traced, so every value of it reuses the program."""
+    x, p = build(param).warp_with_pdf(u)
+    lp = build(param).log_pdf(x)
+    grads = jax.vmap(jax.grad(lambda q, v: _probe(build, q, v), argnums=(0, 1)), (None, 0))(param, u)
+    return x, p, lp, grads
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _float64_case(build, param, u):
+    return build(param).warp_with_pdf(u)
+
+
 def hard_case_table() -> list[dict]:
     rows = []
     for name, what, build, values in CASES:
         for value in values:
             param = jnp.float32(value)
-            sampler = build(param)
-            u = _uniforms(sampler.uniform_dims, jnp.float32)
-            x, p = sampler.warp_with_pdf(u)
-            lp = sampler.log_pdf(x)
-            grads = jax.vmap(jax.grad(lambda q, v: _probe(build, q, v), argnums=(0, 1)), (None, 0))(param, u)
-            bad_values = int(np.sum(~np.isfinite(np.asarray(x)).reshape(len(u), -1).all(-1))
-                             + np.sum(~np.isfinite(np.asarray(p))) + np.sum(np.isnan(np.asarray(lp))))
-            bad_grads = int(sum(np.sum(~np.isfinite(np.asarray(g)).reshape(len(u), -1).all(-1)) for g in grads))
+            u = _uniforms(build(param).uniform_dims, jnp.float32)
+            x, p, lp, grads = jax.tree_util.tree_map(np.asarray, _float32_case(build, param, u))
+            bad_values = int(np.sum(~np.isfinite(x).reshape(len(u), -1).all(-1))
+                             + np.sum(~np.isfinite(p)) + np.sum(np.isnan(lp)))
+            bad_grads = int(sum(np.sum(~np.isfinite(g).reshape(len(u), -1).all(-1)) for g in grads))
             with jax.enable_x64(True):
-                x64, p64 = build(jnp.float64(param)).warp_with_pdf(u.astype(jnp.float64))
-                x64, p64 = np.asarray(x64), np.asarray(p64)
+                x64, p64 = (np.asarray(a) for a in _float64_case(build, jnp.float64(param), u.astype(jnp.float64)))
             positive = p64 > 0
-            rel = np.abs(np.asarray(p, np.float64)[positive] / p64[positive] - 1)
+            rel = np.abs(p.astype(np.float64)[positive] / p64[positive] - 1)
             rows.append({"sampler": name, "parameter": what, "value": value,
                          "non_finite_values": bad_values, "non_finite_gradients": bad_grads,
                          "worst_pdf_rel_error": float(rel.max()) if rel.size else 0.0,
                          # absolute for unit vectors and points; relative for distances above 1
-                         "worst_sample_error": float(np.max(np.abs(np.asarray(x, np.float64) - x64)
+                         "worst_sample_error": float(np.max(np.abs(x.astype(np.float64) - x64)
                                                             / np.maximum(np.abs(x64), 1.0)))})
     return rows
 
