@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
+from .._core.entry import compiled_entry
 from ..samplers.base import check_unbatched, checked
 from .._core.params import check_choice
 from .engine import run_stream
@@ -66,6 +67,7 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
                     max_abs=unravel(est.max_abs), ess=unravel(est.ess), n=est.n, replicates=est.replicates)
 
 
+@compiled_entry("make", "n", "mode", "uniforms", "mesh", "chunk_size", "dtype")
 def estimate_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: jax.Array, n: int, *,
                   mode: str = "attached", uniforms="random", mesh=None, chunk_size: int | None = None,
                   dtype=None) -> Estimate:
@@ -85,6 +87,7 @@ def estimate_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: jax.
                                  mesh=mesh, chunk_size=chunk_size, dtype=dtype)
 
 
+@compiled_entry("make", "n", "gradient", "uniforms", "mesh", "chunk_size", "dtype")
 def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: jax.Array, n: int, *,
                      gradient: str = "pathwise", baseline: Any = None, uniforms="random", mesh=None,
                      chunk_size: int | None = None, dtype=None) -> Estimate:

@@ -49,6 +49,7 @@ from typing import Any, Callable
 import jax
 import jax.numpy as jnp
 
+from .._core.entry import compiled_entry
 from ..samplers.base import checked
 from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
@@ -141,6 +142,7 @@ def _surrogate_values(g, sampler, u, gradient, baseline):
     return gx + score * jax.lax.stop_gradient(centred)
 
 
+@compiled_entry("g", "n", "gradient", "uniforms", "mesh", "chunk_size", "dtype")
 def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
                 gradient: str = "pathwise", baseline: Any = None, uniforms="random", mesh=None,
                 chunk_size: int | None = None, dtype=None) -> Estimate:

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, default_float_dtype
@@ -57,6 +58,7 @@ def _check_samplers_agree(samplers) -> None:
         raise ValueError(f"estimate_mis: parameter 'samplers' must have densities over one measure; got {described}")
 
 
+@compiled_entry("f", "counts", "heuristic", "beta", "uniforms", "mode", "chunk_size", "dtype", "mesh", tuples=("counts",))
 def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequence[int], *,
                  heuristic: str = "balance", beta: float = 2.0, uniforms="random",
                  mode: str = "attached", chunk_size: int | None = None, dtype=None, mesh=None) -> Estimate:

@@ -12,6 +12,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
+from .._core.entry import compiled_entry
 from ..samplers.base import checked
 from .._core.numerics import safe_div
 from .._core.params import check_choice, default_float_dtype
@@ -97,6 +98,7 @@ def integrand_values(f: Callable[[jax.Array], jax.Array], sampler, u: jax.Array,
     return layout.unpack(values)
 
 
+@compiled_entry("f", "n", "uniforms", "mode", "mesh", "chunk_size", "dtype")
 def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: int, *,
              uniforms="random", mode: str = "attached", mesh=None, chunk_size: int | None = None,
              dtype=None) -> Estimate:

@@ -22,6 +22,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
+from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from ..samplers.base import check_unbatched, checked
 from .._core.params import default_float_dtype
@@ -60,6 +61,7 @@ def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, ow
     return est, var_y, var_z, 0.5 * (var_sum - var_y - var_z), layout
 
 
+@compiled_entry("f", "h", "n", "mode", "uniforms", "chunk_size", "dtype")
 def estimate_ratio(f: Callable, h: Callable, sampler, key: jax.Array, n: int, *,
                    mode: str = "attached", uniforms="random", chunk_size=None, dtype=None) -> Estimate:
     """Self-normalized estimate of ∫f / ∫h: (Σ f/p) / (Σ h/p) over the same n samples.
@@ -84,6 +86,7 @@ def estimate_ratio(f: Callable, h: Callable, sampler, key: jax.Array, n: int, *,
                                          replicates=est.replicates))
 
 
+@compiled_entry("f", "n", "mode", "uniforms", "chunk_size", "dtype", "mesh")
 def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: str = "attached",
                         uniforms="random", chunk_size=None, dtype=None, mesh=None) -> Estimate:
     """∫ f dμ from n/2 antithetic pairs: Y(u) and Y(1 - u) averaged per pair (n evaluations of f).
@@ -118,6 +121,7 @@ def _antithetic(f, sampler, key, n, mode, uniforms, chunk_size, dtype, mesh, lay
     return est.per_evaluation(n)
 
 
+@compiled_entry("f", "g", "n", "mode", "uniforms", "chunk_size", "dtype")
 def estimate_control_variate(f: Callable, g: Callable, g_integral, sampler, key: jax.Array, n: int,
                              *, mode: str = "attached", uniforms="random", chunk_size=None,
                              dtype=None) -> Estimate:

@@ -34,6 +34,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from .._core.params import check_choice, default_float_dtype
 from ..estimators.engine import run_stream
@@ -128,6 +129,7 @@ class _Shading:
         return 2 if len(self.lights) == 1 else 3
 
 
+@compiled_entry("n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
 def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: str = "mis",
           mode: str = "attached", heuristic: str = "power", uniforms="random", mesh=None,
           chunk_size: int | None = None, dtype=None) -> Estimate:
