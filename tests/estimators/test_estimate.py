@@ -252,7 +252,7 @@ def test_invalid_arguments():
 
 SHARDED_SCRIPT = textwrap.dedent("""
     import os
-    os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=4"
+    os.environ["XLA_FLAGS"] = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4"
     import jax, jax.numpy as jnp, numpy as np
     import jaxsample as js
     from jaxsample.estimators.plain import estimate
@@ -273,8 +273,9 @@ SHARDED_SCRIPT = textwrap.dedent("""
 
 
 def test_sharded_matches_single_device_in_subprocess():
-    env = dict(os.environ)
-    env.pop("XLA_FLAGS", None)
+    # The caller's compiler options (tests/conftest.py), without a device count it may have forced.
+    env = dict(os.environ, XLA_FLAGS=" ".join(flag for flag in os.environ.get("XLA_FLAGS", "").split()
+                                              if "device_count" not in flag))
     out = subprocess.run([sys.executable, "-c", SHARDED_SCRIPT], capture_output=True, text=True,
                          env=env, timeout=300)
     assert "SHARDED-OK" in out.stdout, out.stderr[-3000:]

@@ -29,9 +29,10 @@ def _free_port() -> int:
 
 
 def _environment():
-    env = dict(os.environ, JAX_PLATFORMS="cpu", PYTHONUNBUFFERED="1")
-    env.pop("XLA_FLAGS", None)  # one device per process, whatever the caller forced
-    return env
+    # One device per process, whatever device count the caller forced; its other compiler options
+    # (tests/conftest.py) are kept.
+    flags = " ".join(flag for flag in os.environ.get("XLA_FLAGS", "").split() if "device_count" not in flag)
+    return dict(os.environ, JAX_PLATFORMS="cpu", PYTHONUNBUFFERED="1", XLA_FLAGS=flags)
 
 
 def test_two_processes_give_the_single_process_results(tmp_path):
