@@ -506,6 +506,18 @@ MUTATIONS = [
       "concrete = None",
       ("tests/test_quadrature.py",),
       "concrete bounds are treated as traced: reversed or infinite bounds are no longer rejected"),
+    # ---- eager calls run as one compiled program (issue 13: suite time; speed of eager calls) ----
+    M("estimate-not-compiled-eagerly", "jaxsample/estimators/plain.py",
+      '@compiled_entry("f", "n", "uniforms", "mode", "mesh", "chunk_size", "dtype")\n',
+      "",
+      ("tests/estimators/test_compiled_entry.py::test_a_repeated_eager_estimate_compiles_nothing",
+       "tests/estimators/test_compiled_entry.py::test_a_repeated_eager_gradient_compiles_nothing"),
+      "estimate runs op by op again: ~40 programs on the first call, its loop recompiled on every call"),
+    M("entry-key-not-normalized", "jaxsample/_core/entry.py",
+      'arguments["key"] = as_key(arguments["key"], fn.__name__)',
+      'arguments["key"] = arguments["key"]',
+      ("tests/estimators/test_compiled_entry.py::test_the_usual_errors_come_through",),
+      "an int key reaches the compiled program and fails with a tracer's message instead of the key rule's"),
 ]
 
 
