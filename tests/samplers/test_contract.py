@@ -202,10 +202,6 @@ def _along(tree):
     return jax.tree_util.tree_map(lambda a: jnp.full_like(a, 0.7), tree)
 
 
-def _finite_part(log_density):
-    return jnp.where(jnp.isfinite(log_density), log_density, 0.0)
-
-
 # Compilation, not execution, is the cost of these checks (one program per entry and dtype,
 # whatever the parameter values). XLA's backend optimisation level may change a last bit (by
 # contracting a multiply and an add), never whether a value is finite, which is all they ask; at
@@ -232,31 +228,41 @@ def _all_derivatives(make, layout, floats, arrays, u, points):
         x_again = s.warp(u)
         return (js.integrand_values(_integrand, s, u), x, p, s.pdf(x_again), s.log_pdf(x_again))
 
-    def at_samples_summed(floats, u):
-        value, x, p, pdf, log_pdf = at_samples(floats, u)
-        x = x.astype(value.dtype) if jnp.issubdtype(x.dtype, jnp.inexact) else jnp.zeros((), value.dtype)
-        return jnp.sum(value) + 1e-3 * (jnp.sum(x) + jnp.sum(p) + jnp.sum(pdf) + jnp.sum(_finite_part(log_pdf)))
-
     def at_points(floats, x):
         s = build(floats)
         return s.pdf(x), s.log_pdf(x)
 
-    def at_points_summed(floats, x):
-        pdf, log_pdf = at_points(floats, x)
-        return jnp.sum(pdf) + jnp.sum(_finite_part(log_pdf))
+    def weights(value, x, p, pdf, log_pdf):
+        """The cotangent of sum(f/p) + 1e-3 (sum(x) + sum(p) + sum(pdf) + sum(finite log_pdf)):
+        a nonzero weight on every term (an integer sample has no derivative and is left out)."""
+        inexact = jnp.issubdtype(x.dtype, jnp.inexact)
+        return (jnp.ones_like(value),) + ((jnp.full_like(x, 1e-3),) if inexact else ()) + (
+            jnp.full_like(p, 1e-3), jnp.full_like(pdf, 1e-3), 1e-3 * jnp.isfinite(log_pdf).astype(log_pdf.dtype))
 
-    values, tangents = jax.jvp(at_samples, (floats, u), _along((floats, u)))
+    def without_integer_sample(linear, x):
+        """The linear map without its integer-sample output (transposable: float -> float)."""
+        if jnp.issubdtype(x.dtype, jnp.inexact):
+            return linear
+        return lambda *tangents: (lambda out: (out[0],) + tuple(out[2:]))(linear(*tangents))
+
+    # One linearization per function gives both modes: forward mode is the linear map applied to
+    # the direction, reverse mode its transpose applied to the weights (what jax.grad does), so the
+    # function and its derivative rules are traced once, not once per mode.
+    values, linear = jax.linearize(at_samples, floats, u)
     out = {"f(x)/p(x), x, p, pdf(x), log_pdf(x) at u": values,
-           "their derivatives along (params, u)": tangents,
-           "gradient of their sum in (params, u)": jax.grad(at_samples_summed, (0, 1))(floats, u)}
+           "their derivatives along (params, u)": linear(*_along((floats, u))),
+           "gradient of their sum in (params, u)": jax.linear_transpose(
+               without_integer_sample(linear, values[1]), floats, u)(weights(*values))}
     if jnp.issubdtype(points.dtype, jnp.inexact):
-        out["densities"], out["their derivatives along (params, x)"] = jax.jvp(
-            at_points, (floats, points), _along((floats, points)))
-        out["gradient of their sum in (params, x)"] = jax.grad(at_points_summed, (0, 1))(floats, points)
+        densities, linear = jax.linearize(at_points, floats, points)
+        out["densities"], out["their derivatives along (params, x)"] = densities, linear(*_along((floats, points)))
+        out["gradient of their sum in (params, x)"] = jax.linear_transpose(linear, floats, points)(
+            (jnp.ones_like(densities[0]), jnp.isfinite(densities[1]).astype(densities[1].dtype)))
     else:
-        out["densities"], out["their derivatives along params"] = jax.jvp(
-            lambda f: at_points(f, points), (floats,), (_along(floats),))
-        out["gradient of their sum in params"] = jax.grad(at_points_summed)(floats, points)
+        densities, linear = jax.linearize(lambda f: at_points(f, points), floats)
+        out["densities"], out["their derivatives along params"] = densities, linear(_along(floats))
+        out["gradient of their sum in params"] = jax.linear_transpose(linear, floats)(
+            (jnp.ones_like(densities[0]), jnp.isfinite(densities[1]).astype(densities[1].dtype)))
     return out
 
 
