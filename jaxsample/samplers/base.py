@@ -270,6 +270,15 @@ def _point_argument(method) -> str:
     return list(inspect.signature(method).parameters)[1]
 
 
+_ARRAY_LEAVES = (jax.Array, np.ndarray, np.generic, float, int, bool, complex)
+
+
+def _concrete(tree) -> bool:
+    """Every leaf an array or number, none of them traced: a call made outside any transformation."""
+    return all(isinstance(leaf, _ARRAY_LEAVES) and not isinstance(leaf, jax.core.Tracer)
+               for leaf in jax.tree_util.tree_leaves(tree))
+
+
 def _batched(method, name: str):
     takes_u = name in ("warp", "warp_with_pdf")
     argument = _point_argument(method)
@@ -282,6 +291,12 @@ def _batched(method, name: str):
             point = kwargs.pop(argument)
         else:
             raise TypeError(f"{type(self).__name__}.{name}: missing the point argument '{argument}'")
+        # Called eagerly (concrete parameters and points, no extra arguments), the method runs as
+        # one compiled program (cached per class, shapes and dtypes) instead of op by op: every
+        # small operation was a program of its own, compiled on first use and dispatched each call.
+        if (not args and not kwargs and isinstance(point, (jax.Array, np.ndarray, np.generic))
+                and _concrete((self, point))):
+            return compiled(self, point)
         batch = self.batch_shape
         if not batch:
             return method(checked(self), point, *args, **kwargs)
@@ -299,6 +314,7 @@ def _batched(method, name: str):
         out = jax.vmap(one, in_axes=(0, 1), out_axes=1)(flat_batch(self, batch), points)
         return jax.tree_util.tree_map(lambda o: o.reshape(sample + batch + o.shape[2:]), out)
 
+    compiled = jax.jit(lambda sampler, point: point_method(sampler, point))
     point_method._batched = True
     return point_method
 
