@@ -3,7 +3,7 @@ key-reuse checker."""
 
 import os
 
-# The suite compiles ~4,600 programs, most of them once, so compiling is two thirds of its CPU
+# The suite compiles thousands of programs, most of them once, so compiling is two thirds of its CPU
 # time. XLA's CPU backend has two code generators for fusions: the MLIR "fusion emitters" (its
 # default since 2025) and the LLVM elemental emitters they replace, which compile the suite's
 # programs about a fifth faster (`python -m pytest -n auto`: 412 s -> 327 s on 2 cores) and give
