@@ -23,9 +23,16 @@ from typing import Callable
 import jax
 import numpy as np
 
-__all__ = ["compiled_entry"]
+__all__ = ["compiled_entry", "array_leaves"]
 
-_TRACEABLE = (jax.Array, np.ndarray, np.generic, bool, int, float, complex)
+_ARRAY_LEAVES = (jax.Array, np.ndarray, np.generic, bool, int, float, complex)
+
+
+def array_leaves(tree, *, concrete: bool = False) -> bool:
+    """Whether every leaf of `tree` is an array or a number (what `jax.jit` can trace), and, with
+    `concrete`, none of them a tracer (the call is made outside any transformation)."""
+    return all(isinstance(leaf, _ARRAY_LEAVES) and not (concrete and isinstance(leaf, jax.core.Tracer))
+               for leaf in jax.tree_util.tree_leaves(tree))
 
 
 def _hashable(value) -> bool:
@@ -61,11 +68,10 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = ()) -> Callable:
                 arguments["key"] = as_key(arguments["key"], fn.__name__)
             dynamic = [value for name, value in arguments.items() if name not in static]
             if (all(_hashable(arguments[name]) for name in static if name in arguments)
-                    and all(isinstance(leaf, _TRACEABLE) for leaf in jax.tree_util.tree_leaves(dynamic))):
+                    and array_leaves(dynamic)):
                 return jitted(*bound.args, **bound.kwargs)
             return fn(*bound.args, **bound.kwargs)
 
-        entry.uncompiled = fn
         return entry
 
     return wrap

@@ -47,8 +47,9 @@ def _probe(build, param, u):
 def _float32_case(build, param, u):
     """Sample, density, log-density at the sample, and the per-point gradients in (param, u): one
     compiled program per sampler, the parameter traced, so every value of it reuses the program."""
-    x, p = build(param).warp_with_pdf(u)
-    lp = build(param).log_pdf(x)
+    sampler = build(param)
+    x, p = sampler.warp_with_pdf(u)
+    lp = sampler.log_pdf(x)
     grads = jax.vmap(jax.grad(lambda q, v: _probe(build, q, v), argnums=(0, 1)), (None, 0))(param, u)
     return x, p, lp, grads
 

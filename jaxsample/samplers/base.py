@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.entry import array_leaves
 from .._core.params import default_float_dtype
 from .._core.pytree import Pytree, tree_fields
 from .._core.numerics import safe_log
@@ -270,15 +271,6 @@ def _point_argument(method) -> str:
     return list(inspect.signature(method).parameters)[1]
 
 
-_ARRAY_LEAVES = (jax.Array, np.ndarray, np.generic, float, int, bool, complex)
-
-
-def _concrete(tree) -> bool:
-    """Every leaf an array or number, none of them traced: a call made outside any transformation."""
-    return all(isinstance(leaf, _ARRAY_LEAVES) and not isinstance(leaf, jax.core.Tracer)
-               for leaf in jax.tree_util.tree_leaves(tree))
-
-
 def _batched(method, name: str):
     takes_u = name in ("warp", "warp_with_pdf")
     argument = _point_argument(method)
@@ -295,7 +287,7 @@ def _batched(method, name: str):
         # one compiled program (cached per class, shapes and dtypes) instead of op by op: every
         # small operation was a program of its own, compiled on first use and dispatched each call.
         if (not args and not kwargs and isinstance(point, (jax.Array, np.ndarray, np.generic))
-                and _concrete((self, point))):
+                and array_leaves((self, point), concrete=True)):
             return compiled(self, point)
         batch = self.batch_shape
         if not batch:
