@@ -32,6 +32,7 @@ from .engine import run_stream
 from .integrand import integrand_layout, require_real
 from .plain import broadcast_like, integrand_values
 from .result import Estimate
+from .boundary import boundary_dims
 from .gradients import _GRADIENTS, _detached_log_pdf, expectation, expectation_values, uniform_dims
 
 __all__ = ["estimate_grad", "expectation_grad"]
@@ -45,7 +46,7 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
     fn, sampler = make(params)
     check_unbatched(sampler, owner)
     sampler = checked(sampler)
-    dims = sampler.uniform_dims + extra_dims
+    dims = sampler.uniform_dims + extra_dims + boundary_dims(fn)
     require_real(integrand_layout(fn, sampler, flat.dtype, owner), owner, "make(params)[0]",
                  "its gradient is an Estimate shaped like params; differentiate one real component per "
                  "call, e.g. lambda w: f(w)['a'] or lambda w: f(w).real")
@@ -124,6 +125,9 @@ def _leave_one_out(make, params, key, n, common) -> Estimate:
     large-n (delta-method) standard error, off by O(1/n).
     """
     g, sampler = make(params)
+    if boundary_dims(g):
+        raise ValueError("expectation_grad: baseline='leave_one_out' does not add the boundary terms of an "
+                         "integrand with declared discontinuities; use a constant baseline")
     mean_g = jax.lax.stop_gradient(expectation(g, sampler, jax.random.clone(key), n, **common).mean)
     scale = n / (n - 1.0)
 

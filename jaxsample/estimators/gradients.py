@@ -56,6 +56,7 @@ from .engine import run_stream
 from .integrand import IntegrandLayout, integrand_layout
 from .plain import broadcast_like, integrand_values, over_batch
 from .result import Estimate
+from .boundary import boundary_dims, boundary_values
 
 __all__ = ["expectation", "expectation_values", "integrand_values"]
 
@@ -96,11 +97,24 @@ def _measure_valued_values(g, sampler, u):
     return gx + tangent * jax.lax.stop_gradient(jnp.asarray(c, gx.dtype) * (gx - gx_product))
 
 
+class _Plain:
+    """g without its declared discontinuities (the interior part of an estimator)."""
+
+    def __init__(self, g):
+        self.g = g
+
+    def __call__(self, x):
+        return self.g(x)
+
+
 def _packed(g, layout: IntegrandLayout, dtype):
     """g with its value packed by the integrand rule: one real vector per sample (g itself for one
     real array)."""
     if layout.plain:
         return g
+    if boundary_dims(g):
+        raise TypeError("expectation: an integrand with declared discontinuities (jaxsample.edges.masked) "
+                        "must return one real array")
     return lambda x: layout.pack(jax.tree_util.tree_map(lambda v: jnp.asarray(v)[None], g(x)), dtype)[0]
 
 
@@ -129,7 +143,18 @@ def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Arra
 
 
 def _surrogate_values(g, sampler, u, gradient, baseline):
-    """`expectation_values` for a g whose value is one real array (packed)."""
+    """`expectation_values` for a g whose value is one real array (packed).
+
+    A g with declared discontinuities (`jaxsample.edges.masked`) reads boundary uniforms from the
+    last `boundary_dims(g)` columns and adds the boundary term of ∫ g p dμ (`boundary.py`): the
+    pathwise samples move with θ, the score and measure-valued ones are held constant.
+    """
+    extra = boundary_dims(g)
+    if extra:
+        interior = _surrogate_values(_Plain(g), sampler, u[:, :-extra], gradient, baseline)
+        edge = boundary_values(g, sampler, u[:, -extra:], moving=gradient == "pathwise", weight_by_density=True,
+                               owner="expectation", remedy="use gradient='score'")
+        return interior + edge
     if gradient == "pathwise":
         return jax.vmap(g)(sampler.warp(u))
     if gradient == "measure_valued":
@@ -182,7 +207,10 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         if gradient != "score":
             raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
     sampler = checked(sampler)  # the invalid-parameter rule, once, outside the loop
-    dims = uniform_dims(sampler, gradient)
+    dims = uniform_dims(sampler, gradient) + boundary_dims(g)
+    if leave_one_out and boundary_dims(g):
+        raise ValueError("expectation: baseline='leave_one_out' does not add the boundary terms of an integrand "
+                         "with declared discontinuities; use a constant baseline")
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     layout = integrand_layout(g, sampler, dtype, "expectation")
     if baseline is not None and not leave_one_out:

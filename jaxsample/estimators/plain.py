@@ -19,6 +19,7 @@ from .._core.params import check_choice, default_float_dtype
 from .engine import run_stream
 from .integrand import integrand_layout, layout_of
 from .result import Estimate
+from .boundary import boundary_dims, boundary_values
 
 __all__ = ["estimate", "integrand_values"]
 
@@ -72,22 +73,38 @@ def output_shape(f, sampler, dtype) -> tuple[int, ...]:
     return integrand_layout(f, sampler, dtype, "estimate").out_shape
 
 
-def packed_values(f, sampler, u: jax.Array, mode: str):
+def packed_values(f, sampler, u: jax.Array, mode: str, *, owner: str = "estimate", boundary: bool = True):
     """(Y packed by the integrand rule, its layout): Y_i = f(x_i)/p(x_i) for every component of
-    f's value, as one real (count, *out_shape) array (f's own values for one real array)."""
-    x, pdf = sampler.warp_with_pdf(u)
+    f's value, as one real (count, *out_shape) array (f's own values for one real array).
+
+    An f that declares discontinuities (`jaxsample.edges.masked`) reads its boundary samples from
+    the last `boundary_dims(f)` columns of u and adds their boundary terms (value 0;
+    `boundary.py`); `boundary=False` (a path that is never differentiated) leaves them out.
+    """
+    extra = boundary_dims(f) if boundary else 0
+    dims = u.shape[-1] - extra
+    if extra and dims != sampler.uniform_dims:
+        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.masked), whose "
+                         "boundary terms this estimator does not add; use estimate or estimate_grad")
+    x, pdf = sampler.warp_with_pdf(u[:, :dims] if extra else u)
     x, pdf = _detach(mode, x, pdf)
     fx = jax.vmap(f)(x)
     layout = layout_of(fx, "integrand_values", lead=1)
     fx = layout.pack(fx, u.dtype)
-    return safe_div(fx, broadcast_like(pdf, fx)), layout
+    values = safe_div(fx, broadcast_like(pdf, fx))
+    if extra:
+        if not layout.plain:
+            raise TypeError(f"{owner}: an integrand with declared discontinuities must return one real array")
+        values = values + boundary_values(f, sampler, u[:, dims:], moving=mode == "attached", owner=owner)
+    return values, layout
 
 
 def integrand_values(f: Callable[[jax.Array], jax.Array], sampler, u: jax.Array, *,
                      mode: str = "attached"):
     """The per-sample values Y_i = f(x_i)/p(x_i), x_i = sampler.warp(u_i), that `estimate` averages.
 
-    `u` is a (count, uniform_dims) block; the result is (count, *f's output shape), 0 where p = 0;
+    `u` is a (count, uniform_dims) block (plus `jaxsample.edges.boundary_dims(f)` columns of
+    boundary uniforms for an f with declared discontinuities); the result is (count, *f's output shape), 0 where p = 0;
     for a pytree-valued f, the same pytree of such arrays (complex leaves stay complex: their real
     and imaginary parts are divided by p). `mode` is applied to the sample and its density
     together (see `estimate`). Differentiating this function per sample (e.g.
@@ -135,7 +152,7 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
                                                      chunk_size=chunk_size, dtype=dtype),
                           sampler, key, "estimate")
     sampler = checked(sampler)  # the invalid-parameter rule, once, outside the loop
-    dims = sampler.uniform_dims
+    dims = sampler.uniform_dims + boundary_dims(f)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
     layout = integrand_layout(f, sampler, dtype, "estimate")
 

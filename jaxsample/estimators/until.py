@@ -166,7 +166,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
     layout = integrand_layout(f, sampler, dtype, "estimate_until")
 
     def values_fn(u):
-        return packed_values(f, sampler, u, mode)[0]
+        return packed_values(f, sampler, u, mode, boundary=False)[0]
 
     point = jax.make_jaxpr(lambda one: values_fn(one[None])[0])(jax.ShapeDtypeStruct((dims,), dtype))
     _refuse_gradients(point.consts)

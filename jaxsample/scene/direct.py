@@ -30,9 +30,12 @@ depends on what the parameter moves:
 
 from __future__ import annotations
 
+import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
+from jax.custom_derivatives import SymbolicZero
 
 from .._core.entry import compiled_entry
 from .._core.counts import check_count
@@ -43,6 +46,7 @@ from ..estimators.plain import check_mode
 from ..estimators.result import Estimate
 from ..samplers.frame import Frame
 from .._core.numerics import safe_div
+from ..estimators.boundary import relative_motion
 
 __all__ = ["shade", "STRATEGIES"]
 
@@ -128,6 +132,148 @@ class _Shading:
     def light_dims(self):
         return 2 if len(self.lights) == 1 else 3
 
+    # The silhouettes' boundary term (see the module docstring and `estimators/boundary.py`).
+    def silhouettes(self):
+        """[(index, region)] for every light whose radiance has an edge (sphere, triangle)."""
+        found = []
+        for index, light in enumerate(self.lights):
+            region = light.silhouette(self.point) if hasattr(light, "silhouette") else None
+            if region is not None:
+                found.append((index, region))
+        return found
+
+    def brdf_flow(self, wi):
+        """The BRDF sample through world direction wi, moving with the BRDF, normal and ω_o."""
+        sampler = self.brdf.sampler(self.wo_local)
+        u = jax.lax.stop_gradient(sampler.inverse(self.frame.to_local(wi)))
+        return self.frame.to_world(sampler.warp(u))
+
+    def light_flow(self, index, wi):
+        """Light `index`'s sample through world direction wi, moving with that light and the point."""
+        sampler = self.lights[index].sampler(self.point)
+        return sampler.warp(jax.lax.stop_gradient(sampler.inverse(wi)))
+
+    def boundary_values(self, t, strategy, exponent):
+        """Per-sample surrogates of value 0 whose derivative is what `strategy` misses at the lights'
+        silhouettes: ∫_∂ Δ(h) q ((v - V)·n) dl per piece of the estimator (module docstring)."""
+        count = len(self.lights)
+        total = jnp.zeros(t.shape[:1], t.dtype)
+        for column, (j, region) in enumerate(self.silhouettes()):
+            y, normal, arc_pdf = region.boundary_sample(t[:, column:column + 1])
+            fixed = jax.lax.stop_gradient(y)
+            normal = jax.lax.stop_gradient(normal)
+            local = self.frame.to_local(fixed)
+            kernel = self.integrand(local, 1.0)                      # f_r cos⁺θ along the rim
+            radiance_in, pdf_in = self.lights[j].inside_values(self.point, fixed)
+            others = [k for k in range(count) if k != j]
+            radiance_rest = sum((self.lights[k].radiance_from(self.point, fixed) for k in others), 0.0)
+            pdf_others = [self.lights[k].pdf(self.point, fixed) for k in others]
+            pdf_rest = sum(pdf_others, 0.0)
+            f_in, f_out = kernel * (radiance_rest + radiance_in), kernel * radiance_rest
+            mix_in, mix_out = (pdf_rest + pdf_in) / count, pdf_rest / count
+
+            def add(jump, flows):
+                weight = jax.lax.stop_gradient(safe_div(jump, arc_pdf))
+                return weight * jnp.sum(normal * relative_motion(y, flows), axis=-1)
+
+            if self.detached:
+                # Samples, densities and weights held: the whole boundary term, Δf v·n.
+                total = total + add(f_in - f_out, ())
+                continue
+            brdf_pdf = self.brdf.pdf(self.wo_local, local)
+            if strategy in ("brdf", "mis"):
+                w_in = mis_weight(brdf_pdf, mix_in, exponent) if strategy == "mis" else 1.0
+                w_out = mis_weight(brdf_pdf, mix_out, exponent) if strategy == "mis" else 1.0
+                total = total + add(w_in * f_in - w_out * f_out, (self.brdf_flow,))
+            if strategy in ("light", "mis"):
+                # Light j's own samples follow its rim; the other lights' samples cross it.
+                w_in = mis_weight(mix_in, brdf_pdf, exponent) if strategy == "mis" else 1.0
+                w_out = mis_weight(mix_out, brdf_pdf, exponent) if strategy == "mis" else 1.0
+                jump = safe_div(w_in * f_in, mix_in) - safe_div(w_out * f_out, mix_out)
+                for k, pdf_k in zip(others, pdf_others):
+                    total = total + add(jump * pdf_k / count, (lambda wi, k=k: self.light_flow(k, wi),))
+        return total
+
+
+def _boundary_surrogate(strategy, mode, exponent, point, normal, wo, brdf, lights, t):
+    return _Shading(point, normal, wo, brdf, lights, mode).boundary_values(t, strategy, exponent)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
+def _boundary_term(strategy, mode, exponent, point, normal, wo, brdf, lights, t):
+    """Zeros (count,) whose derivative is the silhouettes' boundary term for `strategy` and `mode`.
+
+    A custom JVP so that an estimate that is never differentiated does not evaluate the rim at
+    all, and so that a gradient that no term here can make unbiased is refused when it is asked
+    for (`_refuse`), not whenever `shade` runs."""
+    return _zeros_like_rows(t)
+
+
+def _zeros_like_rows(t):
+    # Zeros computed from t, so that under `vmap` they carry t's batch axis (as the tangent does).
+    return 0.0 * jnp.sum(t, axis=-1)
+
+
+def _is_zero(tangent) -> bool:
+    return all(isinstance(leaf, SymbolicZero)
+               for leaf in jax.tree_util.tree_leaves(tangent, is_leaf=lambda v: isinstance(v, SymbolicZero)))
+
+
+def _refuse(strategy, mode, lights, tangents):
+    """ValueError for a gradient that would be biased: lights whose edges `shade` does not know
+    (no `silhouette`: an `EnvironmentMap`'s texel edges, a user's light) are safe only where no
+    sample moves across them (detached, or light sampling of that one light) and, for edges that
+    can move, where nothing moves them."""
+    point_t, normal_t, wo_t, brdf_t, lights_t = tangents
+    unknown = [k for k, light in enumerate(lights) if not hasattr(light, "silhouette")]
+    if not unknown:
+        return
+    attached = mode == "attached"
+    for k in unknown:
+        if getattr(lights[k], "fixed_edges", False) or _is_zero(lights_t[k]):
+            continue
+        if not (attached and strategy == "light" and len(lights) == 1):
+            raise ValueError(f"shade: light {k} ({type(lights[k]).__name__}) has no 'silhouette', so the boundary "
+                             "term of its moving edges is unknown; its gradient is unbiased only with "
+                             "strategy='light', mode='attached' and that light alone")
+    brdf_moves = not all(_is_zero(t) for t in (normal_t, wo_t, brdf_t))
+    if attached and strategy in ("brdf", "mis") and brdf_moves:
+        names = ", ".join(type(lights[k]).__name__ for k in unknown)
+        raise ValueError(f"shade: with strategy={strategy!r}, mode='attached' the BRDF's samples move across the "
+                         f"edges of {names}, whose boundary terms are unknown (no 'silhouette'); for gradients "
+                         "of the BRDF, the normal or wo use mode='detached' (unbiased where the edges stay put) or "
+                         "strategy='light'")
+    others_move = not (_is_zero(point_t) and all(_is_zero(lights_t[k]) for k in range(len(lights)) if k not in unknown))
+    if attached and strategy in ("light", "mis") and len(lights) > 1 and others_move:
+        raise ValueError("shade: with several lights and mode='attached', the samples of a moving light cross the "
+                         "edges of a light without 'silhouette'; use mode='detached'")
+
+
+def _instantiate(primal, tangent):
+    """A zero tangent shaped like its primal (from the primal, not the zero's aval: under `vmap`
+    only the primal knows its batch axis)."""
+    if not isinstance(tangent, SymbolicZero):
+        return tangent
+    if tangent.aval.dtype == jax.dtypes.float0:
+        return np.zeros(jnp.shape(primal), jax.dtypes.float0)
+    return jnp.zeros_like(primal)
+
+
+def _boundary_jvp(strategy, mode, exponent, primals, tangents):
+    *inputs, t = primals
+    _refuse(strategy, mode, inputs[4], tangents[:5])
+    zeros = _zeros_like_rows(t)
+    if all(_is_zero(tangent) for tangent in tangents) or t.shape[1] == 0:
+        return zeros, zeros
+    tangents = jax.tree_util.tree_map(lambda t, p: _instantiate(p, t), tangents, tuple(primals),
+                                      is_leaf=lambda v: isinstance(v, SymbolicZero))
+    _, tangent = jax.jvp(functools.partial(_boundary_surrogate, strategy, mode, exponent), tuple(primals),
+                         tuple(tangents))
+    return zeros, tangent
+
+
+_boundary_term.defjvp(_boundary_jvp, symbolic_zeros=True)
+
 
 @compiled_entry("n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
 def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: str = "mis",
@@ -179,15 +325,21 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
         return safe_div(weight * g, pdf)
 
     if strategy == "brdf":
-        values_fn, dims, count = (lambda u: brdf_values(u, False)), 2, n
+        interior, dims, count = (lambda u: brdf_values(u, False)), 2, n
     elif strategy == "light":
-        values_fn, dims, count = (lambda u: light_values(u, False)), shading.light_dims, n
+        interior, dims, count = (lambda u: light_values(u, False)), shading.light_dims, n
     else:
-        def values_fn(u):
+        def interior(u):
             return brdf_values(u[..., :2], True) + light_values(u[..., 2:], True)
         dims, count = 2 + shading.light_dims, n // 2
+    rims = len(shading.silhouettes())
 
-    est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh,
+    def values_fn(u):
+        # Each evaluation (pair, for "mis") carries one rim point per light with a silhouette.
+        return interior(u[:, :dims]) + _boundary_term(strategy, mode, exponent, point, normal, wo, brdf,
+                                                      shading.lights, u[:, dims:])
+
+    est = run_stream(values_fn, dims + rims, key, count, uniforms=uniforms, mesh=mesh,
                      chunk_size=chunk_size, out_shape=(), dtype=dtype, owner="shade")
     if count == n:
         return est

@@ -49,6 +49,10 @@ class EnvironmentMap:
     may be traced, and gradients reach them through the radiance and the sampling tables.
     """
 
+    # Its radiance jumps at texel edges, which stay put in ω whatever its values: a gradient is
+    # biased only where samples move across them (`shade` says which strategies those are).
+    fixed_edges = True
+
     def __init__(self, values):
         values = jnp.asarray(values)
         if values.ndim != 2:

@@ -32,6 +32,10 @@ class ConstantSky:
         del point
         return UniformSphere()
 
+    def silhouette(self, point):
+        """None: the sky's radiance is the same from every direction, so it has no edge."""
+        return None
+
     def sample(self, point, u):
         """(ω, L_i(ω), p(ω)) from uniforms u (..., 2); p over solid angle at `point`."""
         wi, pdf = self.sampler(point).warp_with_pdf(u)

@@ -52,6 +52,20 @@ class SphereLight:
         axis = jnp.asarray(self.center) - point
         return Oriented(UniformCone.from_sin2(self.sin2_theta_max(point)), axis)
 
+    def silhouette(self, point):
+        """The cap of directions the sphere covers from `point` (`jaxsample.edges.Cap`): its rim is the
+        silhouette, where L_i jumps from L to 0, moving with the centre, the radius and the point."""
+        from ..edges.regions import Cap
+        return Cap(jnp.asarray(self.center) - point, self.sampler(point).base.one_minus_cos_theta_max)
+
+    def inside_values(self, point, wi):
+        """(L_i, p(ω)) just inside the silhouette at rim directions `wi`: L and 1/(2π(1 - cos θ_max))."""
+        pdf = 1.0 / (2.0 * jnp.pi * self.sampler(point).base.one_minus_cos_theta_max)
+        shape = jnp.shape(wi)[:-1]
+        dtype = jnp.result_type(wi, float)
+        return (jnp.broadcast_to(jnp.asarray(self.radiance, dtype), shape),
+                jnp.broadcast_to(jnp.asarray(pdf, dtype), shape))
+
     def sample(self, point, u):
         """(ω, L, p(ω)) from uniforms u (..., 2): every cone direction sees the sphere, so the
         radiance is L without re-testing membership (which rounding at the rim could flip)."""

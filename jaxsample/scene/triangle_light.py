@@ -74,6 +74,13 @@ class TriangleLightDirections(Sampler):
         pdf = safe_div(t * t, self.triangle.area * jnp.abs(cos_light))
         return jnp.where(hit, pdf, 0.0)
 
+    def inverse(self, x):
+        """The uniforms whose warp is direction x: the triangle's inverse at the ray's hit point
+        (the plane's, for a ray that misses: clipped into the unit square)."""
+        normal = self._unit_normal()
+        t = safe_div(jnp.sum((jnp.asarray(self.triangle.a) - self.point) * normal, axis=-1), jnp.sum(x * normal, axis=-1))
+        return self.triangle.inverse(self.point + t[..., None] * x)
+
     def domain(self):
         vertices = [concrete_value(v) for v in (self.triangle.a, self.triangle.b, self.triangle.c)]
         point = concrete_value(self.point)
@@ -110,6 +117,24 @@ class TriangleLight:
 
     def sampler(self, point) -> TriangleLightDirections:
         return TriangleLightDirections(self.triangle, jnp.asarray(point))
+
+    def silhouette(self, point):
+        """The spherical triangle of directions that hit the triangle from `point`
+        (`jaxsample.edges.SphericalTriangle`): its three arcs are where L_i and p jump."""
+        from ..edges.regions import SphericalTriangle
+        point = jnp.asarray(point)
+        return SphericalTriangle(jnp.asarray(self.a) - point, jnp.asarray(self.b) - point, jnp.asarray(self.c) - point)
+
+    def inside_values(self, point, wi):
+        """(L_i, p(ω)) just inside the silhouette at rim directions `wi`: the radiance of the face
+        seen (L from the front, 0 from the back) and d²/(A |cos θ_l|) at the rim, d the distance
+        along wi to the triangle's plane."""
+        normal = self.triangle._normal()[0]
+        cos_light = jnp.sum(wi * normal, axis=-1)
+        distance = safe_div(jnp.sum((jnp.asarray(self.a) - point) * normal, axis=-1), cos_light)
+        pdf = safe_div(distance * distance, self.triangle.area * jnp.abs(cos_light))
+        radiance = jnp.where(cos_light < 0, self.radiance, 0.0).astype(pdf.dtype)
+        return radiance, pdf
 
     def sample(self, point, u):
         """(ω, L_i(ω), p(ω)) from uniforms u (..., 2); L = 0 where the back face is seen."""

@@ -1,0 +1,182 @@
+"""Regions whose boundaries are known: the discontinuities of an integrand, sampled by arc length.
+
+A parameter that moves an edge of the integrand changes the integral by the *boundary term*
+(Reynolds transport; Li et al. 2018, "Differentiable Monte Carlo ray tracing through edge
+sampling", eq. 6): for a region Ω(θ) and an integrand that jumps by Δf(y) = f_inside(y) −
+f_outside(y) across its boundary,
+
+    d/dθ ∫ f dμ = ∫ ∂f/∂θ dμ  +  ∫_{∂Ω} Δf(y) (v(y) · n(y)) dl(y),
+
+with n the outward unit normal of the boundary (tangent to the sphere for regions of directions),
+v = ∂y/∂θ the velocity of a boundary point that stays on the boundary, and dl the arc length
+(on the unit sphere: the length of the curve on the sphere). Only the normal part of v matters,
+so any parametrisation of the boundary that moves with θ gives the same term.
+
+Each region here has:
+
+- `indicator(x)`: 1 inside (boundary included), 0 outside, as a float;
+- `boundary_dims`: uniforms per boundary sample (1 for every region here);
+- `boundary_sample(t)`: (y, n, pdf) from t of shape (..., boundary_dims): a point y on the boundary
+  as a differentiable function of the region's parameters, the outward unit normal at y, and the
+  density of y over arc length. Every region samples its boundary uniformly by arc length, so an
+  integrand whose jump is constant has a boundary term with zero variance.
+
+Regions of directions (`Cap`, `SphericalTriangle`) live on the unit sphere; `Disk` in the plane.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import jax
+import jax.numpy as jnp
+
+from .._core.numerics import INV_2PI, safe_div, safe_sqrt, sincos_2pi
+from .._core.params import check_parameter
+from .._core.pytree import pytree_dataclass
+from ..samplers.frame import Frame
+
+__all__ = ["Cap", "SphericalTriangle", "Disk"]
+
+
+def _unit(v):
+    v = jnp.asarray(v)
+    return v / jnp.linalg.norm(v, axis=-1, keepdims=True)
+
+
+@pytree_dataclass
+class Cap:
+    """The spherical cap {ω ∈ S²: ω·â ≥ cos α} about the axis â = axis/|axis|.
+
+    Stored as h = 1 − cos α (0 < h ≤ 2), the stable form for small caps (`UniformCone` does the
+    same); `Cap.from_angle(axis, alpha)` builds it from the half-angle. Its boundary is the circle
+    of radius sin α = sqrt(h (2 − h)) at height 1 − h, of length 2π sin α; the outward normal at a
+    boundary point is the direction in which α grows, ∂y/∂α. Solid angle 2π h.
+    """
+
+    axis: jax.Array
+    one_minus_cos: jax.Array
+    boundary_dims: ClassVar[int] = 1
+
+    def __post_init__(self):
+        check_parameter("Cap", "one_minus_cos", self.one_minus_cos, 0.0, 2.0, low_open=True)
+
+    @classmethod
+    def from_angle(cls, axis, alpha) -> "Cap":
+        """The cap of half-angle α in (0, π] (1 − cos α = 2 sin²(α/2), accurate for small α)."""
+        return cls(axis, 2.0 * jnp.sin(0.5 * jnp.asarray(alpha)) ** 2)
+
+    def solid_angle(self):
+        return 2.0 * jnp.pi * self.one_minus_cos
+
+    def indicator(self, x):
+        dtype = jnp.result_type(x, float)
+        return (jnp.sum(x * _unit(self.axis), axis=-1) >= 1.0 - self.one_minus_cos).astype(dtype)
+
+    def boundary_sample(self, t):
+        h = jnp.asarray(self.one_minus_cos)
+        frame = Frame.from_normal(self.axis)
+        sin_alpha = safe_sqrt(h * (2.0 - h))
+        sin_phi, cos_phi = sincos_2pi(t[..., 0])
+        around = cos_phi[..., None] * frame.x + sin_phi[..., None] * frame.y
+        y = sin_alpha[..., None] * around + (1.0 - h)[..., None] * frame.z
+        normal = (1.0 - h)[..., None] * around - sin_alpha[..., None] * frame.z
+        pdf = safe_div(INV_2PI, sin_alpha) * jnp.ones_like(t[..., 0])
+        return y, normal, pdf
+
+
+def _arc_angle(a, b):
+    """The angle between unit vectors a and b, stable at 0 and π: atan2(|a × b|, a·b)."""
+    return jnp.arctan2(jnp.linalg.norm(jnp.cross(a, b), axis=-1), jnp.sum(a * b, axis=-1))
+
+
+@pytree_dataclass
+class SphericalTriangle:
+    """The spherical triangle of directions spanned by a, b, c (normalised here): the directions
+    ω = (λ_a a + λ_b b + λ_c c)/|...| with λ ≥ 0, i.e. the directions in which a point sees the flat
+    triangle with vertices at a, b, c relative to it. Its boundary is three great-circle arcs.
+
+    Solid angle by Van Oosterom & Strackee (1983): tan(Ω/2) = |a·(b×c)| / (1 + a·b + b·c + c·a).
+    The boundary is sampled uniformly by arc length over the whole perimeter (an edge in proportion
+    to its length, then a point along its great circle by slerp); the outward normal on an edge is
+    the unit normal of its great-circle plane, signed away from the opposite vertex.
+    """
+
+    a: jax.Array
+    b: jax.Array
+    c: jax.Array
+    boundary_dims: ClassVar[int] = 1
+
+    def _vertices(self):
+        return _unit(self.a), _unit(self.b), _unit(self.c)
+
+    def solid_angle(self):
+        a, b, c = self._vertices()
+        triple = jnp.abs(jnp.sum(a * jnp.cross(b, c), axis=-1))
+        denominator = 1.0 + jnp.sum(a * b, -1) + jnp.sum(b * c, -1) + jnp.sum(c * a, -1)
+        return 2.0 * jnp.arctan2(triple, denominator)
+
+    def indicator(self, x):
+        a, b, c = self._vertices()
+        orientation = jnp.sign(jnp.sum(a * jnp.cross(b, c), axis=-1))
+        inside = ((orientation * jnp.sum(x * jnp.cross(a, b), -1) >= 0)
+                  & (orientation * jnp.sum(x * jnp.cross(b, c), -1) >= 0)
+                  & (orientation * jnp.sum(x * jnp.cross(c, a), -1) >= 0))
+        return inside.astype(jnp.result_type(x, float))
+
+    def boundary_sample(self, t):
+        vertices = self._vertices()
+        edges = [(vertices[k], vertices[(k + 1) % 3], vertices[(k + 2) % 3]) for k in range(3)]
+        lengths = [_arc_angle(start, end) for start, end, _ in edges]
+        perimeter = lengths[0] + lengths[1] + lengths[2]
+        position = t[..., 0] * perimeter
+        first = position < lengths[0]
+        second = ~first & (position < lengths[0] + lengths[1])
+        # The edge that holds the point, and how far along it (in radians) the point lies.
+        along = jnp.where(first, position, jnp.where(second, position - lengths[0],
+                                                     position - lengths[0] - lengths[1]))
+
+        def on_edge(k):
+            start, end, opposite = edges[k]
+            angle = lengths[k]
+            fraction = jnp.clip(safe_div(along, angle), 0.0, 1.0)
+            # slerp: sin((1-s)Θ)/sinΘ start + sin(sΘ)/sinΘ end; an arc of length Θ < π.
+            sin_angle = jnp.sin(angle)
+            y = (safe_div(jnp.sin((1.0 - fraction) * angle), sin_angle)[..., None] * start
+                 + safe_div(jnp.sin(fraction * angle), sin_angle)[..., None] * end)
+            plane = _unit(jnp.cross(start, end))
+            side = jnp.sign(jnp.sum(plane * opposite, axis=-1))
+            return y, -side[..., None] * plane
+
+        (y0, n0), (y1, n1), (y2, n2) = on_edge(0), on_edge(1), on_edge(2)
+        pick = lambda v0, v1, v2: jnp.where(first[..., None], v0, jnp.where(second[..., None], v1, v2))
+        pdf = safe_div(1.0, perimeter) * jnp.ones_like(t[..., 0])
+        return pick(y0, y1, y2), pick(n0, n1, n2), pdf
+
+
+@pytree_dataclass
+class Disk:
+    """The disk {x ∈ R²: |x − center| ≤ radius}; boundary the circle of length 2π r, outward
+    normal (cos φ, sin φ), sampled uniformly by arc length (density 1/(2π r)). Area π r²."""
+
+    center: jax.Array
+    radius: jax.Array
+    boundary_dims: ClassVar[int] = 1
+
+    def __post_init__(self):
+        check_parameter("Disk", "radius", self.radius, 0.0, low_open=True)
+
+    def area(self):
+        return jnp.pi * jnp.asarray(self.radius) ** 2
+
+    def indicator(self, x):
+        offset = x - jnp.asarray(self.center)
+        return (jnp.sum(offset * offset, axis=-1) <= jnp.asarray(self.radius) ** 2).astype(jnp.result_type(x, float))
+
+    def boundary_sample(self, t):
+        sin_phi, cos_phi = sincos_2pi(t[..., 0])
+        normal = jnp.stack([cos_phi, sin_phi], axis=-1)
+        radius = jnp.asarray(self.radius)
+        y = jnp.asarray(self.center) + radius[..., None] * normal
+        pdf = safe_div(INV_2PI, radius) * jnp.ones_like(t[..., 0])
+        return y, normal, pdf
