@@ -12,7 +12,7 @@ from .environment import EnvironmentDirections, EnvironmentMap
 from .lambertian import Lambertian
 from .phong import Phong, reflect
 from .reference import reference_radiance
-from .direct import STRATEGIES, mis_weight, shade
+from .direct import STRATEGIES, mis_weight, shade, shade_grad
 from .sky import ConstantSky
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight, TriangleLightDirections
@@ -21,5 +21,5 @@ __all__ = [
     "Lambertian", "Phong", "reflect",
     "ConstantSky", "SphereLight", "TriangleLight", "TriangleLightDirections", "EnvironmentMap",
     "EnvironmentDirections",
-    "shade", "mis_weight", "STRATEGIES", "reference_radiance",
+    "shade", "shade_grad", "mis_weight", "STRATEGIES", "reference_radiance",
 ]

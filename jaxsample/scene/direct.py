@@ -18,24 +18,43 @@ The returned `variance` is the per-evaluation variance stderr² · n for all thr
 
 Gradients (`mode`, Zeltner et al. 2021): "attached" differentiates through the samples, their
 densities and the MIS weights; "detached" stops the gradient of all three together (world-space
-samples are frozen), so only f_r, L_i and cos θ_i carry derivatives. Which one is unbiased
-depends on what the parameter moves:
-- parameters that only change the integrand smoothly (albedo, exponent, radiance) — detached
-  is unbiased; attached is unbiased too unless samples cross a discontinuity of L_i that stays
-  put (a BRDF sample sliding over a light's rim as the exponent changes misses that jump);
-- parameters that move a discontinuity (a light's position moves its silhouette) — only the
-  samples that move with it see the change: "light" strategy, attached, is unbiased; "brdf"
-  sampling and detached mode miss the silhouette's boundary term (detached gives 0 here).
+samples are frozen), so only f_r, L_i and cos θ_i carry derivatives. Neither alone is unbiased
+when a parameter moves a light's silhouette (its centre, radius, vertices, or the shading point),
+or when samples move across a silhouette (BRDF samples as the exponent or ω_o changes): L_i jumps
+there, and the per-sample derivative of a jump is 0. What each estimator misses is the boundary
+term of the silhouette (`jaxsample.estimators.boundary`), and `shade` adds it for every light that
+has a `silhouette(point)` (`SphereLight`: a cap; `TriangleLight`: a spherical triangle;
+`ConstantSky`: none, its radiance has no edge), by edge sampling: every evaluation (every pair,
+for "mis") also draws one point y uniformly by arc length on each such silhouette and adds a term
+of value 0 whose derivative is, per piece of the estimator with sample density q and sample flow V,
+
+    Δ(h)(y) q(y) ((v(y) − V(y)) · n(y)) / p_arc(y),      h = w f / p the piece's per-sample value,
+
+with v the velocity of the silhouette and n its outward normal. Detached: V = 0 and the pieces
+add up to Δf v·n. Attached: the BRDF's samples move with the BRDF, the normal and ω_o (V from
+the BRDF sampler's inverse: `brdf.sampler(wo).inverse`), so "brdf" and the BRDF half of "mis" get
+Δ(w_b f)((v − V_b)·n); light samples of the light whose rim it is follow it (no term), and the
+other lights' samples crossing it get theirs. So every strategy and mode is unbiased for every
+parameter of the BRDF and of these lights; `shade_grad` gives the gradient with its standard
+error, the boundary term's variance included (it rides on the same evaluation).
+
+The term is a custom JVP whose value is never computed: an estimate that is not differentiated
+costs what it did. Lights without `silhouette` (`EnvironmentMap`, whose texel edges are fixed in
+ω, and user lights) have edges `shade` cannot sample; a gradient that would cross them is refused
+with a ValueError when it is asked for (the BRDF's parameters in attached "brdf"/"mis", a user
+light's own parameters outside attached light sampling of that light alone).
 """
 
 from __future__ import annotations
 
 import functools
+from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.custom_derivatives import SymbolicZero
+from jax.flatten_util import ravel_pytree
 
 from .._core.entry import compiled_entry
 from .._core.counts import check_count
@@ -48,7 +67,7 @@ from ..samplers.frame import Frame
 from .._core.numerics import safe_div
 from ..estimators.boundary import relative_motion
 
-__all__ = ["shade", "STRATEGIES"]
+__all__ = ["shade", "shade_grad", "STRATEGIES"]
 
 STRATEGIES = ("brdf", "light", "mis")
 
@@ -301,13 +320,29 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     Returns: an `Estimate` of L_o (a scalar); `n` is the evaluation count and `variance` the
     per-evaluation variance, so strategies compare at equal cost.
     """
-    check_choice("shade", "strategy", strategy, STRATEGIES)
-    check_mode("shade", mode)
-    check_choice("shade", "heuristic", heuristic, ("power", "balance"))
-    n = check_count("shade", "n", n, minimum=2)
-    if strategy == "mis" and n % 2:
-        raise ValueError(f"shade: parameter 'n' must be even for strategy 'mis' (n/2 of each strategy); got {n}")
+    n = _check_options("shade", strategy, mode, heuristic, n)
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    values_fn, dims, count = _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype)
+    est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh,
+                     chunk_size=chunk_size, out_shape=(), dtype=dtype, owner="shade")
+    if count == n:
+        return est
+    return est.per_evaluation(n)  # one pair costs two evaluations
+
+
+def _check_options(owner, strategy, mode, heuristic, n):
+    check_choice(owner, "strategy", strategy, STRATEGIES)
+    check_mode(owner, mode)
+    check_choice(owner, "heuristic", heuristic, ("power", "balance"))
+    n = check_count(owner, "n", n, minimum=2)
+    if strategy == "mis" and n % 2:
+        raise ValueError(f"{owner}: parameter 'n' must be even for strategy 'mis' (n/2 of each strategy); got {n}")
+    return n
+
+
+def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype):
+    """(values_fn, uniform dims, count): the per-evaluation (per-pair for "mis") values of `shade`,
+    interior estimate plus the silhouettes' boundary term (value 0), from (count, dims) uniforms."""
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
     shading = _Shading(point, normal, wo, brdf, _as_tuple(lights), mode)
     exponent = 1 if heuristic == "balance" else 2
@@ -339,8 +374,37 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
         return interior(u[:, :dims]) + _boundary_term(strategy, mode, exponent, point, normal, wo, brdf,
                                                       shading.lights, u[:, dims:])
 
-    est = run_stream(values_fn, dims + rims, key, count, uniforms=uniforms, mesh=mesh,
-                     chunk_size=chunk_size, out_shape=(), dtype=dtype, owner="shade")
-    if count == n:
-        return est
-    return est.per_evaluation(n)  # one pair costs two evaluations
+    return values_fn, dims + rims, count
+
+
+@compiled_entry("make", "n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
+def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, strategy: str = "mis",
+               mode: str = "attached", heuristic: str = "power", uniforms="random", mesh=None,
+               chunk_size: int | None = None, dtype=None) -> Estimate:
+    """∇θ of `shade`'s estimate with its standard error; `(point, normal, wo, brdf, lights) =
+    make(θ)`, θ = `params` (a pytree of floats: an exponent, a light's centre, vertices ...).
+
+    The mean is the gradient `jax.grad` of `shade(..., key, n, ...).mean` gives (same samples, to
+    float rounding); the standard error is the spread of the per-evaluation (per-pair for "mis")
+    gradients, streamed in constant memory like `jaxsample.estimate_grad`, with the silhouettes'
+    boundary term inside each of them. Options as in `shade`.
+    """
+    n = _check_options("shade_grad", strategy, mode, heuristic, n)
+    flat, unravel = ravel_pytree(params)
+    if not jnp.issubdtype(flat.dtype, jnp.floating):
+        raise TypeError(f"shade_grad: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
+    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    _, dims, count = _program(*make(params), strategy, mode, heuristic, n, dtype)
+
+    def values_fn(u):
+        def one(row):
+            return jax.grad(lambda theta: _program(*make(unravel(theta)), strategy, mode, heuristic, n,
+                                                   dtype)[0](row[None])[0])(flat)
+        return jax.vmap(one)(u)
+
+    est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
+                     out_shape=flat.shape, dtype=dtype, owner="shade_grad")
+    if count != n:
+        est = est.per_evaluation(n)
+    return Estimate(mean=unravel(est.mean), stderr=unravel(est.stderr), variance=unravel(est.variance),
+                    max_abs=unravel(est.max_abs), ess=unravel(est.ess), n=est.n, replicates=est.replicates)

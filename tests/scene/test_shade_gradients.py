@@ -1,0 +1,103 @@
+"""`shade`'s gradients for every parameter of the BRDF and the light (issue 23), against central
+differences of the float64 `reference_radiance` (`shade_grid.py`: 12 configurations per light).
+
+Each configuration's gradient comes from `shade_grad` (per-evaluation gradients, the silhouette's
+boundary term inside each, 4096 evaluations, a fixed key); z = (gradient - reference) / stderr per
+parameter. Thresholds: the mean of z² over a light's 12 x (7 or 12) parameters below 2.5, and
+every |z| below 5.5 (attached: all three strategies, both lights; detached: the default
+"mis" on the sphere light, whose boundary term is the plain Δf v·n). With independent normal z the first is the χ² statistic divided by its dof,
+and 2.5 is more than 9 of its standard deviations above 1; the parameters are correlated (albedo
+and radiance enter as a product), which widens its spread, at most by the factor of the two
+duplicated columns, keeping the threshold above 6 sd (false failure below 1e-8 for a normal
+tail); the second, over 12 x 7 x 4 + 12 x 12 x 3 = 768 values, fails by chance with probability 768 x 3.8e-8 < 3e-5. The
+estimators' skew at exponent 1000 (a mean 2.9 sd low at 2^14 evaluations, unbiased at 2^21)
+is what 5.5 leaves room for. Without the boundary term the light parameters' z reach hundreds
+(the "brdf" strategy's light gradient is then exactly 0), and the default "mis" was 5-100 sd off.
+"""
+
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.flatten_util import ravel_pytree
+
+from jaxsample import scene
+
+sys.path.insert(0, str(Path(__file__).parent))
+import shade_grid  # noqa: E402
+
+N = 4096
+QUADRATURE = dict(panels=16, order=8, azimuth=128)
+_REFERENCES = {}
+
+
+def _references(kind):
+    if kind not in _REFERENCES:
+        rows = shade_grid.CASES[kind][0]
+        _REFERENCES[kind] = np.stack([shade_grid.reference_gradient(kind, row, **QUADRATURE)[1] for row in rows])
+    return _REFERENCES[kind]
+
+
+def gradients(kind, strategy, mode, n=N, seed=23):
+    """(means, stderrs): (configurations, parameters) arrays from one vmapped `shade_grad`."""
+    rows, to_params, to_scene = shade_grid.CASES[kind]
+    geometry = tuple(jnp.asarray(np.array([row[i] for row in rows], float), jnp.float32) for i in range(3))
+    params = jax.tree_util.tree_map(lambda *xs: jnp.asarray(np.stack(xs), jnp.float32),
+                                    *[to_params(row) for row in rows])
+
+    def one(geom, p, k):
+        return scene.shade_grad(lambda q: to_scene(geom, q), p, k, n, strategy=strategy, mode=mode)
+
+    est = jax.jit(jax.vmap(one))(geometry, params, jax.random.split(jax.random.key(seed), len(rows)))
+    flat = jax.vmap(lambda tree: ravel_pytree(tree)[0])
+    return np.asarray(flat(est.mean)), np.asarray(flat(est.stderr))
+
+
+def z_scores(kind, strategy, mode, **kw):
+    means, stderrs = gradients(kind, strategy, mode, **kw)
+    reference = _references(kind)
+    # The reference's own error (quadrature at the horizon kink, differencing) is below 1e-4 relative.
+    return (means - reference) / np.sqrt(stderrs ** 2 + (1e-4 * np.abs(reference) + 1e-7) ** 2)
+
+
+@pytest.mark.parametrize("kind,strategy,mode", [(kind, strategy, "attached") for kind in ("sphere", "triangle")
+                                                for strategy in ("mis", "brdf", "light")]
+                         + [("sphere", "mis", "detached")])
+def test_every_gradient_agrees_with_the_reference(kind, strategy, mode):
+    z = z_scores(kind, strategy, mode)
+    assert np.all(np.isfinite(z))
+    assert float(np.mean(z ** 2)) < 2.5, (kind, strategy, mode, np.round(z, 1))
+    assert float(np.max(np.abs(z))) < 5.5, (kind, strategy, mode, np.round(z, 1))
+
+
+def test_shade_grad_is_the_gradient_of_shade():
+    """The mean of `shade_grad` is `jax.grad` of `shade`'s mean on the same samples."""
+    rows, to_params, to_scene = shade_grid.CASES["sphere"]
+    row = rows[0]
+    geometry = tuple(jnp.asarray(v, jnp.float32) for v in row[:3])
+    params = jax.tree_util.tree_map(jnp.float32, to_params(row))
+    key = jax.random.key(5)
+    est = scene.shade_grad(lambda q: to_scene(geometry, q), params, jax.random.clone(key), 1024)
+    direct = jax.grad(lambda q: scene.shade(*to_scene(geometry, q), jax.random.clone(key), 1024).mean)(params)
+    for name in params:
+        np.testing.assert_allclose(est.mean[name], direct[name], rtol=2e-4, atol=1e-6)
+        assert np.all(np.asarray(est.stderr[name]) > 0)
+
+
+def test_gradients_that_cannot_be_unbiased_are_refused():
+    """An environment map's texel edges are unknown to `shade`: attached BRDF samples cross them,
+    so the exponent's gradient under attached "mis" is refused; detached is allowed, and so is
+    the value."""
+    env = scene.EnvironmentMap(jnp.ones((4, 8)).at[1, 2].set(5.0))
+
+    def value(exponent, mode):
+        return scene.shade(jnp.zeros(3), jnp.array([0.0, 0.0, 1.0]), jnp.array([0.3, 0.0, 1.0]),
+                           scene.Phong(exponent, 0.8), env, jax.random.key(0), 256, mode=mode).mean
+
+    assert np.isfinite(float(value(10.0, "attached")))
+    with pytest.raises(ValueError, match="mode='detached'"):
+        jax.grad(value)(10.0, "attached")
+    assert np.isfinite(float(jax.grad(value)(10.0, "detached")))
