@@ -5,11 +5,12 @@ Samplers are immutable pytrees with `warp`, `pdf`, `log_pdf`, `inverse`, `sample
 them into integrals with standard errors under `jit`, `vmap`, `grad` and a device mesh.
 
 The folders are the layers (docs/design.md): `_core` (numerics, pytrees, parameter checks),
-`uniforms`, `samplers`, `estimators`, `checks` (public name `testing`), `quadrature`, `scene` and
+`uniforms`, `samplers`, `estimators`, `edges` (discontinuities and their boundary terms), `checks`
+(public name `testing`), `quadrature`, `scene` and
 `report` (`python -m jaxsample report`). The public names are the ones below.
 """
 
-from . import gradients, numerics, quadrature, scene, uniforms
+from . import edges, gradients, numerics, quadrature, scene, uniforms
 from .estimators import (Estimate, EstimateUntil, estimate, estimate_antithetic, estimate_control_variate,
                          estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation,
                          expectation_grad, expectation_values, integrand_values)
@@ -50,5 +51,5 @@ __all__ = [
     # gradients
     "expectation", "expectation_values", "estimate_grad", "expectation_grad",
     # modules
-    "domains", "gradients", "numerics", "quadrature", "scene", "testing", "uniforms",
+    "domains", "edges", "gradients", "numerics", "quadrature", "scene", "testing", "uniforms",
 ]

@@ -214,23 +214,24 @@ class _Shading:
         return total
 
 
-def _boundary_surrogate(strategy, mode, exponent, point, normal, wo, brdf, lights, t):
-    return _Shading(point, normal, wo, brdf, lights, mode).boundary_values(t, strategy, exponent)
+def _boundary_surrogate(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, u):
+    shading = _Shading(point, normal, wo, brdf, lights, mode)
+    return shading.boundary_values(_rim_uniforms(jax.lax.stop_gradient(u), rims), strategy, exponent)
 
 
-@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2))
-def _boundary_term(strategy, mode, exponent, point, normal, wo, brdf, lights, t):
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2, 3))
+def _boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, u):
     """Zeros (count,) whose derivative is the silhouettes' boundary term for `strategy` and `mode`.
 
     A custom JVP so that an estimate that is never differentiated does not evaluate the rim at
     all, and so that a gradient that no term here can make unbiased is refused when it is asked
     for (`_refuse`), not whenever `shade` runs."""
-    return _zeros_like_rows(t)
+    return _zeros_like_rows(u)
 
 
-def _zeros_like_rows(t):
-    # Zeros computed from t, so that under `vmap` they carry t's batch axis (as the tangent does).
-    return 0.0 * jnp.sum(t, axis=-1)
+def _zeros_like_rows(u):
+    # Zeros computed from u, so that under `vmap` they carry u's batch axis (as the tangent does).
+    return 0.0 * u[:, 0]
 
 
 def _is_zero(tangent) -> bool:
@@ -278,15 +279,15 @@ def _instantiate(primal, tangent):
     return jnp.zeros_like(primal)
 
 
-def _boundary_jvp(strategy, mode, exponent, primals, tangents):
-    *inputs, t = primals
+def _boundary_jvp(strategy, mode, exponent, rims, primals, tangents):
+    *inputs, u = primals
     _refuse(strategy, mode, inputs[4], tangents[:5])
-    zeros = _zeros_like_rows(t)
-    if all(_is_zero(tangent) for tangent in tangents) or t.shape[1] == 0:
+    zeros = _zeros_like_rows(u)
+    if all(_is_zero(tangent) for tangent in tangents) or rims == 0:
         return zeros, zeros
     tangents = jax.tree_util.tree_map(lambda t, p: _instantiate(p, t), tangents, tuple(primals),
                                       is_leaf=lambda v: isinstance(v, SymbolicZero))
-    _, tangent = jax.jvp(functools.partial(_boundary_surrogate, strategy, mode, exponent), tuple(primals),
+    _, tangent = jax.jvp(functools.partial(_boundary_surrogate, strategy, mode, exponent, rims), tuple(primals),
                          tuple(tangents))
     return zeros, tangent
 
@@ -340,9 +341,11 @@ def _check_options(owner, strategy, mode, heuristic, n):
     return n
 
 
-def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype):
+def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype, boundary=True):
     """(values_fn, uniform dims, count): the per-evaluation (per-pair for "mis") values of `shade`,
-    interior estimate plus the silhouettes' boundary term (value 0), from (count, dims) uniforms."""
+    interior estimate plus the silhouettes' boundary term (value 0), from (count, dims) uniforms.
+    `boundary=False` leaves the term out: the old, biased gradient, kept only so that the report
+    can measure what the term costs."""
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
     shading = _Shading(point, normal, wo, brdf, _as_tuple(lights), mode)
     exponent = 1 if heuristic == "balance" else 2
@@ -367,14 +370,33 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
         def interior(u):
             return brdf_values(u[..., :2], True) + light_values(u[..., 2:], True)
         dims, count = 2 + shading.light_dims, n // 2
+    # Light sampling of a single light, attached, follows that light's rim: nothing to add or refuse.
+    follows = strategy == "light" and mode == "attached" and len(shading.lights) == 1
+    if not boundary or follows:
+        return interior, dims, count
     rims = len(shading.silhouettes())
 
     def values_fn(u):
         # Each evaluation (pair, for "mis") carries one rim point per light with a silhouette.
-        return interior(u[:, :dims]) + _boundary_term(strategy, mode, exponent, point, normal, wo, brdf,
-                                                      shading.lights, u[:, dims:])
+        return interior(u) + _boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf,
+                                            shading.lights, u)
 
-    return values_fn, dims + rims, count
+    return values_fn, dims, count
+
+
+def _rim_uniforms(u, rims):
+    """One uniform per rim from the evaluation's own uniforms: t_j = frac(u_0 + u_1 + j φ), φ the golden
+    ratio's fraction. u_0 is uniform and independent of u_1, so t_j is exactly uniform (a uniform plus
+    anything independent of it, mod 1), and the boundary term it drives is unbiased; it is correlated
+    with the interior sample, which the per-evaluation standard error accounts for. Drawing fresh
+    uniforms instead cost a third Philox output per evaluation: +50 % on BRDF sampling's value,
+    which never needs the term (measured; `benchmarks/`)."""
+    total = u[:, 0] + u[:, 1]
+    columns = []
+    for j in range(rims):
+        shifted = total + np.float32(j * 0.6180339887498949)
+        columns.append(shifted - jnp.floor(shifted))
+    return jnp.stack(columns, axis=-1) if columns else jnp.zeros(u.shape[:1] + (0,), u.dtype)
 
 
 @compiled_entry("make", "n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
@@ -389,17 +411,21 @@ def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, 
     gradients, streamed in constant memory like `jaxsample.estimate_grad`, with the silhouettes'
     boundary term inside each of them. Options as in `shade`.
     """
+    return _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype)
+
+
+def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype, boundary=True):
     n = _check_options("shade_grad", strategy, mode, heuristic, n)
     flat, unravel = ravel_pytree(params)
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"shade_grad: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
     dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
-    _, dims, count = _program(*make(params), strategy, mode, heuristic, n, dtype)
+    _, dims, count = _program(*make(params), strategy, mode, heuristic, n, dtype, boundary)
 
     def values_fn(u):
         def one(row):
             return jax.grad(lambda theta: _program(*make(unravel(theta)), strategy, mode, heuristic, n,
-                                                   dtype)[0](row[None])[0])(flat)
+                                                   dtype, boundary)[0](row[None])[0])(flat)
         return jax.vmap(one)(u)
 
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,

@@ -343,7 +343,6 @@ def test_light_position_gradient_matches_finite_differences_and_the_closed_form(
 
     value_and_grad = jax.jit(jax.value_and_grad(radiance_at), static_argnames="mode")
     _, attached = value_and_grad(center, jax.random.clone(key), "attached")
-    _, detached = value_and_grad(center, jax.random.clone(key), "detached")
     evaluate = jax.jit(radiance_at, static_argnames="mode")
     step = 1e-2
     finite = []
@@ -363,7 +362,12 @@ def test_light_position_gradient_matches_finite_differences_and_the_closed_form(
     scale = np.max(np.abs(exact))
     np.testing.assert_allclose(attached, finite, atol=2e-3 * scale)
     np.testing.assert_allclose(attached, exact, atol=1e-2 * scale)
-    np.testing.assert_allclose(detached, exact, atol=1e-2 * scale)
+    # Detached: the boundary term alone, noisier; held to 5 of its own standard errors (false
+    # failure 6e-7 per component), from `shade_grad` on the same samples.
+    held = scene.shade_grad(lambda c: (POINT, NORMAL, WO, brdf, scene.SphereLight(c, radius, radiance)), center,
+                            jax.random.key(14), 1 << 14, strategy="light", mode="detached")
+    assert np.all(np.abs(np.asarray(held.mean) - exact) < 5.0 * np.asarray(held.stderr)), (held.mean, held.stderr, exact)
+    assert np.all(np.asarray(held.stderr) < 0.05 * scale)
 
 
 def test_exponent_gradient_is_finite_and_agrees_between_modes():

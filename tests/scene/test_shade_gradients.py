@@ -1,5 +1,5 @@
 """`shade`'s gradients for every parameter of the BRDF and the light (issue 23), against central
-differences of the float64 `reference_radiance` (`shade_grid.py`: 12 configurations per light).
+differences of the float64 `reference_radiance` (`jaxsample/report/shade_gradients.py`: 12 configurations per light).
 
 Each configuration's gradient comes from `shade_grad` (per-evaluation gradients, the silhouette's
 boundary term inside each, 4096 evaluations, a fixed key); z = (gradient - reference) / stderr per
@@ -15,9 +15,6 @@ is what 5.5 leaves room for. Without the boundary term the light parameters' z r
 (the "brdf" strategy's light gradient is then exactly 0), and the default "mis" was 5-100 sd off.
 """
 
-import sys
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -25,42 +22,13 @@ import pytest
 from jax.flatten_util import ravel_pytree
 
 from jaxsample import scene
-
-sys.path.insert(0, str(Path(__file__).parent))
-import shade_grid  # noqa: E402
+from jaxsample.report import shade_gradients as shade_grid
 
 N = 4096
-QUADRATURE = dict(panels=16, order=8, azimuth=128)
-_REFERENCES = {}
 
 
-def _references(kind):
-    if kind not in _REFERENCES:
-        rows = shade_grid.CASES[kind][0]
-        _REFERENCES[kind] = np.stack([shade_grid.reference_gradient(kind, row, **QUADRATURE)[1] for row in rows])
-    return _REFERENCES[kind]
-
-
-def gradients(kind, strategy, mode, n=N, seed=23):
-    """(means, stderrs): (configurations, parameters) arrays from one vmapped `shade_grad`."""
-    rows, to_params, to_scene = shade_grid.CASES[kind]
-    geometry = tuple(jnp.asarray(np.array([row[i] for row in rows], float), jnp.float32) for i in range(3))
-    params = jax.tree_util.tree_map(lambda *xs: jnp.asarray(np.stack(xs), jnp.float32),
-                                    *[to_params(row) for row in rows])
-
-    def one(geom, p, k):
-        return scene.shade_grad(lambda q: to_scene(geom, q), p, k, n, strategy=strategy, mode=mode)
-
-    est = jax.jit(jax.vmap(one))(geometry, params, jax.random.split(jax.random.key(seed), len(rows)))
-    flat = jax.vmap(lambda tree: ravel_pytree(tree)[0])
-    return np.asarray(flat(est.mean)), np.asarray(flat(est.stderr))
-
-
-def z_scores(kind, strategy, mode, **kw):
-    means, stderrs = gradients(kind, strategy, mode, **kw)
-    reference = _references(kind)
-    # The reference's own error (quadrature at the horizon kink, differencing) is below 1e-4 relative.
-    return (means - reference) / np.sqrt(stderrs ** 2 + (1e-4 * np.abs(reference) + 1e-7) ** 2)
+def z_scores(kind, strategy, mode):
+    return shade_grid.z_scores(kind, strategy, mode, N, seed=23)
 
 
 @pytest.mark.parametrize("kind,strategy,mode", [(kind, strategy, "attached") for kind in ("sphere", "triangle")

@@ -1,6 +1,9 @@
-"""The configurations on which `shade`'s gradients are held to finite differences of the float64
-reference (issue 23): grazing views, lights at the horizon, a shading point close to the light,
-exponents from 1 to 1000, tilted normals, small and large lights. Shared by the tests and the report.
+"""`shade`'s gradients against finite differences of the float64 reference, per strategy and mode,
+and what the silhouettes' boundary term costs (issue 23). Shared by the tests and the report.
+
+The configurations: grazing views, lights at the horizon, a shading point close to the light,
+exponents from 1 to 1000, tilted normals, small and large lights, each under a sphere light and a
+triangle light.
 
 Each configuration is (point, normal, wo, exponent, albedo, light); the differentiated parameters
 are the BRDF's log-exponent and albedo and every parameter of the light (a sphere's centre, radius
@@ -143,3 +146,135 @@ def reference_gradient(kind, row, step=1e-5, **quadrature):
             down[i] -= h
             grad[i] = (value(up) - value(down)) / (2.0 * h)
         return value(flat), grad
+
+
+QUADRATURE = dict(panels=16, order=8, azimuth=128)
+STRATEGY_MODES = [(strategy, mode) for mode in ("attached", "detached") for strategy in ("mis", "brdf", "light")]
+_REFERENCES = {}
+
+
+def references(kind):
+    """(configurations, parameters) reference gradients, computed once per process."""
+    if kind not in _REFERENCES:
+        rows = CASES[kind][0]
+        _REFERENCES[kind] = np.stack([reference_gradient(kind, row, **QUADRATURE)[1] for row in rows])
+    return _REFERENCES[kind]
+
+
+def parameter_names(kind):
+    """Names of the flat parameter vector's entries (`ravel_pytree` order: sorted keys)."""
+    params = CASES[kind][1](CASES[kind][0][0])
+    names = []
+    for key in sorted(params):
+        size = np.size(params[key])
+        names += [key] if size == 1 else [f"{key}[{i}]" for i in range(size)]
+    return names
+
+
+def _program(kind, strategy, mode, n, boundary):
+    import jax
+    from jax.flatten_util import ravel_pytree
+    from ..scene.direct import _shade_grad
+
+    rows, to_params, to_scene = CASES[kind]
+
+    def one(geometry, params, key):
+        return _shade_grad(lambda q: to_scene(geometry, q), params, key, n, strategy, mode, "power", "random",
+                           None, None, None, boundary)
+
+    def run(geometry, params, keys):
+        est = jax.vmap(one)(geometry, params, keys)
+        flat = jax.vmap(lambda tree: ravel_pytree(tree)[0])
+        return flat(est.mean), flat(est.stderr)
+
+    return jax.jit(run)
+
+
+def _inputs(kind, seed):
+    import jax
+
+    rows, to_params, _ = CASES[kind]
+    geometry = tuple(jnp.asarray(np.array([row[i] for row in rows], float), jnp.float32) for i in range(3))
+    params = jax.tree_util.tree_map(lambda *xs: jnp.asarray(np.stack(xs), jnp.float32),
+                                    *[to_params(row) for row in rows])
+    return geometry, params, jax.random.split(jax.random.key(seed), len(rows))
+
+
+def gradients(kind, strategy, mode, n=4096, seed=23, boundary=True):
+    """(means, stderrs): (configurations, parameters) arrays from one vmapped `shade_grad` call."""
+    means, stderrs = _program(kind, strategy, mode, n, boundary)(*_inputs(kind, seed))
+    return np.asarray(means), np.asarray(stderrs)
+
+
+def z_scores(kind, strategy, mode, n=4096, seed=23, boundary=True):
+    """(gradient − reference) / stderr per configuration and parameter; the reference's own error
+    (quadrature at a horizon kink, differencing) is below 1e-4 relative and is added in quadrature."""
+    means, stderrs = gradients(kind, strategy, mode, n, seed, boundary)
+    reference = references(kind)
+    return (means - reference) / np.sqrt(stderrs ** 2 + (1e-4 * np.abs(reference) + 1e-7) ** 2)
+
+
+def z_table(n=4096, seed=23, progress=print):
+    """One row per light, strategy and mode, with and without the boundary term: the mean of z²
+    (about 1 when unbiased with honest error bars), the largest |z| and where it is."""
+    rows = []
+    for kind in CASES:
+        names = parameter_names(kind)
+        for strategy, mode in STRATEGY_MODES:
+            for boundary in (True, False):
+                progress(f"  shade gradients: {kind} light, {strategy}, {mode}, boundary term {'on' if boundary else 'off'}")
+                z = z_scores(kind, strategy, mode, n, seed, boundary)
+                worst = np.unravel_index(int(np.argmax(np.abs(z))), z.shape)
+                rows.append({"light": kind, "strategy": strategy, "mode": mode,
+                             "boundary_term": "yes" if boundary else "no", "configurations": z.shape[0],
+                             "parameters": z.shape[1], "mean_z2": float(np.mean(z ** 2)),
+                             "max_abs_z": float(np.max(np.abs(z))),
+                             "within_3_sigma": float(np.mean(np.abs(z) < 3.0)),
+                             "worst": f"configuration {worst[0]}, {names[worst[1]]}"})
+    return rows
+
+
+def cost_table(n=1 << 14, seed=29, repeats=3, progress=print):
+    """Time per gradient sample and gradient variance x time, with and without the boundary term,
+    per light and strategy (attached), medians of `repeats` timed runs after a compile."""
+    import time
+
+    rows = []
+    for kind in CASES:
+        for strategy in ("mis", "brdf", "light"):
+            measured = {}
+            for boundary in (True, False):
+                progress(f"  boundary-term cost: {kind} light, {strategy}, term {'on' if boundary else 'off'}")
+                program = _program(kind, strategy, "attached", n, boundary)
+                inputs = _inputs(kind, seed)
+                means, stderrs = program(*inputs)
+                np.asarray(means)
+                times = []
+                for _ in range(repeats):
+                    start = time.perf_counter()
+                    np.asarray(program(*inputs)[0])
+                    times.append(time.perf_counter() - start)
+                per_sample = float(np.median(times)) / (n * len(CASES[kind][0]))
+                variance = np.asarray(stderrs) ** 2 * n
+                measured[boundary] = (per_sample, variance)
+            (with_time, with_var), (without_time, without_var) = measured[True], measured[False]
+            ratio = with_var / np.where(without_var > 0, without_var, np.nan)
+            rows.append({"light": kind, "strategy": strategy, "ns_per_gradient_sample": 1e9 * with_time,
+                         "ns_without_term": 1e9 * without_time, "time_ratio": with_time / without_time,
+                         "median_variance_ratio": float(np.nanmedian(ratio)),
+                         "median_variance_x_time_ratio": float(np.nanmedian(ratio)) * with_time / without_time})
+    return rows
+
+
+def markdown(z_rows, cost_rows) -> str:
+    lines = ["| light | strategy | mode | boundary term | mean z² | max abs z | within 3σ | worst |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in z_rows:
+        lines.append(f"| {r['light']} | {r['strategy']} | {r['mode']} | {r['boundary_term']} | {r['mean_z2']:.2f} | "
+                     f"{r['max_abs_z']:.1f} | {r['within_3_sigma']:.1%} | {r['worst']} |")
+    lines += ["", "| light | strategy (attached) | ns / gradient sample | without the term | time ratio | "
+              "variance ratio (median) | variance x time ratio |", "|---|---|---|---|---|---|---|"]
+    for r in cost_rows:
+        lines.append(f"| {r['light']} | {r['strategy']} | {r['ns_per_gradient_sample']:.0f} | {r['ns_without_term']:.0f} | "
+                     f"{r['time_ratio']:.2f} | {r['median_variance_ratio']:.2f} | {r['median_variance_x_time_ratio']:.2f} |")
+    return "\n".join(lines) + "\n"
