@@ -34,7 +34,16 @@ import jax.numpy as jnp
 from ..edges.masked import boundary_dims, discontinuities
 from .._core.numerics import safe_div
 
-__all__ = ["boundary_values", "boundary_dims", "relative_motion"]
+__all__ = ["boundary_values", "boundary_dims", "relative_motion", "refuse_edges"]
+
+
+def refuse_edges(owner: str, *functions) -> None:
+    """ValueError for an estimator that does not add boundary terms, given an integrand that
+    declares discontinuities: its gradient would silently miss them."""
+    if any(boundary_dims(f) for f in functions):
+        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.masked), whose "
+                         "boundary terms this estimator does not add; use estimate or estimate_grad (or, for a "
+                         "value only, pass the plain function f.__call__)")
 
 
 def _has_parameters(sampler) -> bool:

@@ -20,6 +20,7 @@ from .engine import run_stream
 from .integrand import integrand_layout
 from .plain import _detach, broadcast_like, check_mode
 from .result import Estimate
+from .boundary import refuse_edges
 
 __all__ = ["estimate_mis", "heuristic_weights"]
 
@@ -81,6 +82,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     if len(samplers) != len(sizes) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
     _check_samplers_agree(samplers)
+    refuse_edges("estimate_mis", f)
     samplers = [checked(s) for s in samplers]
     # The counts enter the weights as floats: a Python int beyond 2^31 overflows JAX's weak int32.
     counts = [float(c) for c in sizes]

@@ -30,6 +30,7 @@ from .engine import run_stream
 from .integrand import integrand_layout, require_real_scalar
 from .plain import _detach, broadcast_like, check_mode, packed_values
 from .result import Estimate
+from .boundary import refuse_edges
 from .._core.numerics import safe_div, safe_sqrt
 
 __all__ = ["estimate_ratio", "estimate_antithetic", "estimate_control_variate"]
@@ -74,6 +75,7 @@ def estimate_ratio(f: Callable, h: Callable, sampler, key: jax.Array, n: int, *,
     once); h returns a real scalar. Use the "random" source (the delta-method variance assumes
     independent points).
     """
+    refuse_edges("estimate_ratio", f, h)
     est, var_y, var_z, cov, layout = _paired_moments(
         f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, "estimate_ratio", "h",
         "the denominator ∫h is one number")
@@ -133,6 +135,7 @@ def estimate_control_variate(f: Callable, g: Callable, g_integral, sampler, key:
     coefficient per real component); g returns a real scalar, with the real `g_integral`. Use the
     "random" source.
     """
+    refuse_edges("estimate_control_variate", f, g)
     est, var_y, var_z, cov, layout = _paired_moments(
         f, g, sampler, key, n, mode, uniforms, chunk_size, dtype, "estimate_control_variate", "g",
         "a control variate is one real function with a known integral")
