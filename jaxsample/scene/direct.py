@@ -163,6 +163,10 @@ class _Shading:
 
     def brdf_flow(self, wi):
         """The BRDF sample through world direction wi, moving with the BRDF, normal and ω_o."""
+        if not hasattr(self.brdf, "sampler"):
+            raise ValueError(f"shade: {type(self.brdf).__name__} has no 'sampler(wo)' (a directional sampler with an "
+                             "'inverse'), so how its samples move across a light's rim is unknown; for gradients "
+                             "use mode='detached' or strategy='light'")
         sampler = self.brdf.sampler(self.wo_local)
         u = jax.lax.stop_gradient(sampler.inverse(self.frame.to_local(wi)))
         return self.frame.to_world(sampler.warp(u))
