@@ -32,7 +32,9 @@ import jax
 import jax.numpy as jnp
 
 from .._core.numerics import INV_2PI, safe_div, safe_sqrt, sincos_2pi
-from .._core.params import check_parameter
+import numpy as np
+
+from .._core.params import check_parameter, concrete_value
 from .._core.pytree import pytree_dataclass
 from ..samplers.frame import Frame
 
@@ -42,6 +44,17 @@ __all__ = ["Cap", "SphericalTriangle", "Disk"]
 def _unit(v):
     v = jnp.asarray(v)
     return v / jnp.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _check_vector(owner: str, name: str, value, size: int, nonzero: bool = True) -> None:
+    """ValueError unless a concrete `value` is a finite vector of `size` entries (non-zero if asked)."""
+    v = concrete_value(value)
+    if v is None:
+        return
+    v = np.asarray(v, float)
+    if v.shape != (size,) or not np.all(np.isfinite(v)) or (nonzero and not np.any(v)):
+        raise ValueError(f"{owner}: parameter '{name}' must be a finite{' non-zero' if nonzero else ''} vector of "
+                         f"shape ({size},); got {v.tolist() if v.size <= 4 else v.shape}")
 
 
 @pytree_dataclass
@@ -60,10 +73,12 @@ class Cap:
 
     def __post_init__(self):
         check_parameter("Cap", "one_minus_cos", self.one_minus_cos, 0.0, 2.0, low_open=True)
+        _check_vector("Cap", "axis", self.axis, 3)
 
     @classmethod
     def from_angle(cls, axis, alpha) -> "Cap":
         """The cap of half-angle α in (0, π] (1 − cos α = 2 sin²(α/2), accurate for small α)."""
+        check_parameter("Cap.from_angle", "alpha", alpha, 0.0, np.pi, low_open=True)
         return cls(axis, 2.0 * jnp.sin(0.5 * jnp.asarray(alpha)) ** 2)
 
     def solid_angle(self):
@@ -106,6 +121,16 @@ class SphericalTriangle:
     b: jax.Array
     c: jax.Array
     boundary_dims: ClassVar[int] = 1
+
+    def __post_init__(self):
+        for name in ("a", "b", "c"):
+            _check_vector("SphericalTriangle", name, getattr(self, name), 3)
+        vertices = [concrete_value(getattr(self, name)) for name in ("a", "b", "c")]
+        if all(v is not None for v in vertices):
+            a, b, c = (np.asarray(v, float) / np.linalg.norm(v) for v in vertices)
+            if abs(a @ np.cross(b, c)) < 1e-12:
+                raise ValueError("SphericalTriangle: parameters 'a', 'b', 'c' must not lie on one great circle "
+                                 "(a degenerate triangle of zero solid angle)")
 
     def _vertices(self):
         return _unit(self.a), _unit(self.b), _unit(self.c)
@@ -165,6 +190,7 @@ class Disk:
 
     def __post_init__(self):
         check_parameter("Disk", "radius", self.radius, 0.0, low_open=True)
+        _check_vector("Disk", "center", self.center, 2, nonzero=False)
 
     def area(self):
         return jnp.pi * jnp.asarray(self.radius) ** 2

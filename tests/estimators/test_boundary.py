@@ -195,8 +195,16 @@ def test_errors_name_what_is_wrong():
         edges.masked(object(), lambda w: 1.0)
     with pytest.raises(ValueError, match="one_minus_cos"):
         edges.Cap(jnp.array([0.0, 0.0, 1.0]), 3.0)
+    with pytest.raises(ValueError, match="alpha"):
+        edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), 4.0)
+    with pytest.raises(ValueError, match="axis"):
+        edges.Cap(jnp.zeros(3), 0.5)
     with pytest.raises(ValueError, match="radius"):
         edges.Disk(jnp.array([0.0, 0.0]), -1.0)
+    with pytest.raises(ValueError, match="center"):
+        edges.Disk(jnp.array([0.0, 0.0, 0.0]), 1.0)
+    with pytest.raises(ValueError, match="great circle"):
+        edges.SphericalTriangle(jnp.array([1.0, 0.0, 0.0]), jnp.array([0.0, 1.0, 0.0]), jnp.array([1.0, 1.0, 0.0]))
     f = edges.masked(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), 0.5), lambda w: 1.0)
     with pytest.raises(ValueError, match="boundary terms"):
         js.estimate_mis(f, [js.UniformSphere(), js.CosineHemisphere()], jax.random.key(10), [256, 256])
