@@ -275,7 +275,46 @@ def cost_table(n=1 << 14, seed=29, repeats=3, progress=print, strategies=("mis",
     return rows
 
 
-def markdown(z_rows, cost_rows) -> str:
+def value_cost_table(n=1 << 22, repeats=5, progress=print):
+    """ns per radiance evaluation of `shade`'s value (no gradient) with and without the boundary
+    term in the program, the first configuration of each light: the term is a custom JVP whose
+    value is never computed, so the two should match (medians of `repeats` runs)."""
+    import time
+
+    import jax
+    from ..estimators.engine import run_stream
+    from ..scene.direct import _program as shade_program
+
+    rows = []
+    for kind in CASES:
+        rows_of_kind, to_params, to_scene = CASES[kind]
+        row = rows_of_kind[0]
+        geometry = tuple(jnp.asarray(v, jnp.float32) for v in row[:3])
+        params = {k: jnp.asarray(v, jnp.float32) for k, v in to_params(row).items()}
+        for strategy in ("mis", "brdf"):
+            measured = {}
+            for boundary in (True, False):
+                progress(f"  value cost: {kind} light, {strategy}, term {'in' if boundary else 'out'}")
+
+                def run(key, boundary=boundary):
+                    fn, dims, count = shade_program(*to_scene(geometry, params), strategy, "attached", "power", n,
+                                                    jnp.float32, boundary)
+                    return run_stream(fn, dims, key, count, out_shape=(), dtype=jnp.float32).mean
+
+                program = jax.jit(run)
+                program(jax.random.key(0)).block_until_ready()
+                times = []
+                for i in range(repeats):
+                    start = time.perf_counter()
+                    program(jax.random.key(i + 1)).block_until_ready()
+                    times.append(time.perf_counter() - start)
+                measured[boundary] = 1e9 * float(np.median(times)) / n
+            rows.append({"light": kind, "strategy": strategy, "ns_with_term": measured[True],
+                         "ns_without_term": measured[False], "ratio": measured[True] / measured[False]})
+    return rows
+
+
+def markdown(z_rows, cost_rows, value_rows=()) -> str:
     lines = ["z = (gradient − reference)/stderr for every parameter of 12 configurations per light (a gradient "
              "that is exactly 0 ± 0 gets the reference's own error, 1e-4 relative, as its stderr).", "",
              "| light | strategy | mode | boundary term | mean z² | max abs z | within 3σ | worst |",
@@ -288,6 +327,12 @@ def markdown(z_rows, cost_rows) -> str:
     for r in cost_rows:
         lines.append(f"| {r['light']} | {r['strategy']} | {r['ns_per_gradient_sample']:.0f} | {r['ns_without_term']:.0f} | "
                      f"{r['time_ratio']:.2f} | {r['median_variance_ratio']:.2f} | {r['median_variance_x_time_ratio']:.2f} |")
+    if value_rows:
+        lines += ["", "| light | strategy (value only) | ns / evaluation, term in the program | term left out | ratio |",
+                  "|---|---|---|---|---|"]
+        for r in value_rows:
+            lines.append(f"| {r['light']} | {r['strategy']} | {r['ns_with_term']:.1f} | {r['ns_without_term']:.1f} | "
+                         f"{r['ratio']:.2f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -301,12 +346,13 @@ def main(argv=None):
     parser.add_argument("--out", default=None, help="directory for shade_gradients.json")
     args = parser.parse_args(argv)
     z_rows = z_table(quick=args.quick)
-    cost_rows = cost_table()
-    print(markdown(z_rows, cost_rows))
+    cost_rows = cost_table(strategies=("mis", "brdf") if args.quick else ("mis", "brdf", "light"))
+    value_rows = value_cost_table()
+    print(markdown(z_rows, cost_rows, value_rows))
     if args.out:
         os.makedirs(args.out, exist_ok=True)
         with open(os.path.join(args.out, "shade_gradients.json"), "w") as fh:
-            json.dump({"z": z_rows, "cost": cost_rows}, fh, indent=1)
+            json.dump({"z": z_rows, "cost": cost_rows, "value_cost": value_rows}, fh, indent=1)
     return 0
 
 
