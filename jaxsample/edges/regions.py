@@ -100,9 +100,14 @@ class Cap:
         return y, normal, pdf
 
 
+def _norm(v):
+    """|v| with a finite derivative at v = 0 (jnp.linalg.norm's is NaN there)."""
+    return safe_sqrt(jnp.sum(v * v, axis=-1))
+
+
 def _arc_angle(a, b):
     """The angle between unit vectors a and b, stable at 0 and π: atan2(|a × b|, a·b)."""
-    return jnp.arctan2(jnp.linalg.norm(jnp.cross(a, b), axis=-1), jnp.sum(a * b, axis=-1))
+    return jnp.arctan2(_norm(jnp.cross(a, b)), jnp.sum(a * b, axis=-1))
 
 
 @pytree_dataclass
@@ -144,7 +149,8 @@ class SphericalTriangle:
     def indicator(self, x):
         a, b, c = self._vertices()
         orientation = jnp.sign(jnp.sum(a * jnp.cross(b, c), axis=-1))
-        inside = ((orientation * jnp.sum(x * jnp.cross(a, b), -1) >= 0)
+        # A degenerate (traced) triangle has orientation 0 and would pass every test: it holds nothing.
+        inside = ((orientation != 0) & (orientation * jnp.sum(x * jnp.cross(a, b), -1) >= 0)
                   & (orientation * jnp.sum(x * jnp.cross(b, c), -1) >= 0)
                   & (orientation * jnp.sum(x * jnp.cross(c, a), -1) >= 0))
         return inside.astype(jnp.result_type(x, float))
@@ -169,7 +175,11 @@ class SphericalTriangle:
             sin_angle = jnp.sin(angle)
             y = (safe_div(jnp.sin((1.0 - fraction) * angle), sin_angle)[..., None] * start
                  + safe_div(jnp.sin(fraction * angle), sin_angle)[..., None] * end)
-            plane = _unit(jnp.cross(start, end))
+            # An arc of length 0 or π (the viewpoint on an edge's line) has no great-circle plane: its
+            # normal is taken as 0, so it adds nothing (a measure-zero configuration) instead of NaN.
+            cross = jnp.cross(start, end)
+            length = _norm(cross)[..., None]
+            plane = cross / jnp.where(length > 0, length, 1.0)
             side = jnp.sign(jnp.sum(plane * opposite, axis=-1))
             return y, -side[..., None] * plane
 

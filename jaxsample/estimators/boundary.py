@@ -24,6 +24,12 @@ where sg is stop_gradient and q the boundary density: its value is exactly 0, so
 unchanged, and its derivative is the missing term's unbiased estimate. Because it rides on the same
 row as the interior sample, the per-sample gradients of `estimate_grad` include it and their
 spread is the standard error of the whole gradient, boundary term included.
+
+Assumed, not checked: the sampler's density is continuous across the region's boundary (a sampler
+whose own support ends exactly on the region's rim, e.g. a `UniformCone` on the same cap, makes the
+support factor p(y) > 0 a matter of rounding, and for an expectation the jump would be
+g_in p_in − g_out p_out rather than Δg · p), and the warp is continuous where the samples cross
+the boundary (not a `Mixture`'s component choice or a rejection step).
 """
 
 from __future__ import annotations

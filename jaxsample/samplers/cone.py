@@ -11,7 +11,7 @@ from .base import Sampler
 from .._core.params import as_parameter, check_parameter, concrete_value, in_range
 from .._core.pytree import pytree_attributes
 from .domain import Directions
-from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
+from .._core.numerics import (INV_2PI, safe_sqrt, azimuth_fraction, direction_from_one_minus_cos,
     one_minus_cos_theta)
 
 # Relative slack on the cap's edge in `pdf`: a sample warped from u₀ = 1 - 2^-24 must not be
@@ -74,7 +74,9 @@ class UniformCone(Sampler):
         """Cap no wider than a hemisphere, from sin² θ_max in (0, 1]: h = s / (1 + sqrt(1 - s))."""
         check_parameter("UniformCone.from_sin2", "sin2_theta_max", sin2_theta_max, 0.0, 1.0, low_open=True)
         s = jnp.asarray(sin2_theta_max)
-        return cls(one_minus_cos_theta_max=s / (1.0 + jnp.sqrt(1.0 - s)))
+        # safe_sqrt: at s = 1 (a hemisphere; a sphere light whose clamp has reached it) the derivative of
+        # sqrt(1 - s) is infinite, and inf times a zero tangent would make the gradient NaN.
+        return cls(one_minus_cos_theta_max=s / (1.0 + safe_sqrt(1.0 - s)))
 
     @property
     def cos_theta_max(self):

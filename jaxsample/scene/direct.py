@@ -390,9 +390,11 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
 
 def _rim_uniforms(u, rims):
     """One uniform per rim from the evaluation's own uniforms: t_j = frac(u_0 + u_1 + j φ), φ the golden
-    ratio's fraction. u_0 is uniform and independent of u_1, so t_j is exactly uniform (a uniform plus
-    anything independent of it, mod 1), and the boundary term it drives is unbiased; it is correlated
-    with the interior sample, which the per-evaluation standard error accounts for. Drawing fresh
+    ratio's fraction. A uniform plus anything independent of it is uniform mod 1: so t_j is exactly
+    uniform for independent points and for Owen-scrambled Sobol' (each coordinate scrambled with its
+    own seed), and over the strata for the stratified source ((c + r) mod s is uniform when the
+    cell c is); the boundary term it drives is unbiased. It is correlated with the interior sample,
+    which the per-evaluation standard error accounts for. Drawing fresh
     uniforms instead cost a third Philox output per evaluation: +50 % on BRDF sampling's value,
     which never needs the term (measured; `benchmarks/`)."""
     total = u[:, 0] + u[:, 1]
