@@ -99,3 +99,22 @@ def test_overlapping_lights_and_a_sky():
     g = scene.shade_grad(build, params, jax.random.key(31), 1 << 14)  # "mis": BRDF and light pieces
     mean, stderr = np.asarray(ravel_pytree(g.mean)[0]), np.asarray(ravel_pytree(g.stderr)[0])
     assert np.all(np.abs(mean - expected) < 5.0 * stderr), (mean, stderr, expected)
+
+
+def test_gradients_stay_finite_at_degenerate_geometry():
+    """No NaN where a silhouette degenerates: a shading point inside a sphere light (outside the
+    documented range, clamped to a hemisphere: wrong but finite) and a viewpoint on the line of a
+    triangle's edge (an arc of length π, whose great-circle plane does not exist)."""
+    point, normal, wo = jnp.zeros(3), jnp.array([0.0, 0.0, 1.0]), jnp.array([0.3, 0.1, 1.0])
+
+    def inside(centre):
+        return scene.shade(point, normal, wo, scene.Lambertian(0.8), scene.SphereLight(centre, 2.0, 1.0),
+                           jax.random.key(0), 256, strategy="brdf").mean
+
+    def on_edge(a):
+        light = scene.TriangleLight(a, jnp.array([1.0, 0.0, 0.0]), jnp.array([0.0, 0.5, 1.0]), 1.0)
+        return scene.shade(point, normal, wo, scene.Lambertian(0.8), light, jax.random.key(1), 256,
+                           strategy="brdf").mean
+
+    assert np.all(np.isfinite(np.asarray(jax.grad(inside)(jnp.array([0.1, 0.2, 0.5])))))
+    assert np.all(np.isfinite(np.asarray(jax.grad(on_edge)(jnp.array([-1.0, 0.0, 0.0])))))
