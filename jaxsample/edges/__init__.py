@@ -1,11 +1,11 @@
 """Discontinuities that move with a parameter, and the boundary terms of their gradients.
 
-`Cap`, `SphericalTriangle` (directions) and `Disk` (the plane) know their boundaries;
+`Cap`, `SphericalTriangle`, `SphericalPolygon` (directions) and `Disk` (the plane) know their boundaries;
 `masked(region, inside, outside)` is an integrand that jumps across one, and every gradient estimator
 adds its boundary term (Li et al. 2018). See `regions.py` and `masked.py`.
 """
 
 from .masked import Masked, boundary_dims, discontinuities, masked
-from .regions import Cap, Disk, SphericalTriangle
+from .regions import Cap, Disk, SphericalPolygon, SphericalTriangle
 
-__all__ = ["Cap", "SphericalTriangle", "Disk", "Masked", "masked", "discontinuities", "boundary_dims"]
+__all__ = ["Cap", "SphericalTriangle", "SphericalPolygon", "Disk", "Masked", "masked", "discontinuities", "boundary_dims"]

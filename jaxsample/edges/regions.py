@@ -21,7 +21,8 @@ Each region here has:
   density of y over arc length. Every region samples its boundary uniformly by arc length, so an
   integrand whose jump is constant has a boundary term with zero variance.
 
-Regions of directions (`Cap`, `SphericalTriangle`) live on the unit sphere; `Disk` in the plane.
+Regions of directions (`Cap`, `SphericalTriangle`, `SphericalPolygon`) live on the unit sphere; `Disk`
+in the plane.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from .._core.params import check_parameter, concrete_value
 from .._core.pytree import pytree_dataclass
 from ..samplers.frame import Frame
 
-__all__ = ["Cap", "SphericalTriangle", "Disk"]
+__all__ = ["Cap", "SphericalTriangle", "SphericalPolygon", "Disk"]
 
 
 def _unit(v):
@@ -110,6 +111,67 @@ def _arc_angle(a, b):
     return jnp.arctan2(_norm(jnp.cross(a, b)), jnp.sum(a * b, axis=-1))
 
 
+def _polygon_vertices(vertices):
+    """(K, 3) unit vertices."""
+    return _unit(jnp.asarray(vertices))
+
+
+def _polygon_indicator(vertices, x):
+    """1 inside a convex spherical polygon (edges v_k → v_{k+1} all turning the same way), else 0."""
+    count = vertices.shape[0]
+    orientation = jnp.sign(jnp.sum(vertices[0] * jnp.cross(vertices[1], vertices[2]), axis=-1))
+    inside = orientation != 0  # a degenerate (traced) polygon holds nothing
+    for k in range(count):
+        inside = inside & (orientation * jnp.sum(x * jnp.cross(vertices[k], vertices[(k + 1) % count]), -1) >= 0)
+    return inside.astype(jnp.result_type(x, float))
+
+
+def _polygon_boundary(vertices, t):
+    """(y, outward normal, arc-length density) on a convex spherical polygon's perimeter, uniformly by
+    arc length: an edge in proportion to its length, then a point along its great circle (slerp)."""
+    count = vertices.shape[0]
+    lengths = [_arc_angle(vertices[k], vertices[(k + 1) % count]) for k in range(count)]
+    perimeter = sum(lengths)
+    position = t[..., 0] * perimeter
+    y, normal, start_length = None, None, 0.0
+    for k in range(count):
+        start, end = vertices[k], vertices[(k + 1) % count]
+        opposite = vertices[(k + 2) % count]
+        angle = lengths[k]
+        fraction = jnp.clip(safe_div(position - start_length, angle), 0.0, 1.0)
+        sin_angle = jnp.sin(angle)
+        point = (safe_div(jnp.sin((1.0 - fraction) * angle), sin_angle)[..., None] * start
+                 + safe_div(jnp.sin(fraction * angle), sin_angle)[..., None] * end)
+        # An arc of length 0 or π (the viewpoint on an edge's line) has no great-circle plane: its
+        # normal is taken as 0, so it adds nothing (a measure-zero configuration) instead of NaN.
+        cross = jnp.cross(start, end)
+        length = _norm(cross)[..., None]
+        plane = cross / jnp.where(length > 0, length, 1.0)
+        side = jnp.sign(jnp.sum(plane * opposite, axis=-1))
+        edge_normal = -side[..., None] * plane * jnp.ones_like(point)
+        if y is None:
+            y, normal = point, edge_normal
+        else:
+            here = (position >= start_length)[..., None]
+            y, normal = jnp.where(here, point, y), jnp.where(here, edge_normal, normal)
+        start_length = start_length + angle
+    pdf = safe_div(1.0, perimeter) * jnp.ones_like(t[..., 0])
+    return y, normal, pdf
+
+
+def _polygon_solid_angle(vertices):
+    """Solid angle of a convex spherical polygon: its fan of triangles from vertex 0, each by
+    Van Oosterom & Strackee (1983), tan(Ω/2) = |a·(b×c)| / (1 + a·b + b·c + c·a)."""
+    total = 0.0
+    a = vertices[0]
+    for k in range(1, vertices.shape[0] - 1):
+        b, c = vertices[k], vertices[k + 1]
+        triple = jnp.abs(jnp.sum(a * jnp.cross(b, c), axis=-1))
+        denominator = 1.0 + jnp.sum(a * b, -1) + jnp.sum(b * c, -1) + jnp.sum(c * a, -1)
+        total = total + 2.0 * jnp.arctan2(triple, denominator)
+    return total
+
+
 @pytree_dataclass
 class SphericalTriangle:
     """The spherical triangle of directions spanned by a, b, c (normalised here): the directions
@@ -130,63 +192,63 @@ class SphericalTriangle:
     def __post_init__(self):
         for name in ("a", "b", "c"):
             _check_vector("SphericalTriangle", name, getattr(self, name), 3)
-        vertices = [concrete_value(getattr(self, name)) for name in ("a", "b", "c")]
-        if all(v is not None for v in vertices):
-            a, b, c = (np.asarray(v, float) / np.linalg.norm(v) for v in vertices)
-            if abs(a @ np.cross(b, c)) < 1e-12:
-                raise ValueError("SphericalTriangle: parameters 'a', 'b', 'c' must not lie on one great circle "
-                                 "(a degenerate triangle of zero solid angle)")
+        _check_not_degenerate("SphericalTriangle", "'a', 'b', 'c'", [self.a, self.b, self.c])
 
     def _vertices(self):
-        return _unit(self.a), _unit(self.b), _unit(self.c)
+        return jnp.stack([_unit(self.a), _unit(self.b), _unit(self.c)])
 
     def solid_angle(self):
-        a, b, c = self._vertices()
-        triple = jnp.abs(jnp.sum(a * jnp.cross(b, c), axis=-1))
-        denominator = 1.0 + jnp.sum(a * b, -1) + jnp.sum(b * c, -1) + jnp.sum(c * a, -1)
-        return 2.0 * jnp.arctan2(triple, denominator)
+        return _polygon_solid_angle(self._vertices())
 
     def indicator(self, x):
-        a, b, c = self._vertices()
-        orientation = jnp.sign(jnp.sum(a * jnp.cross(b, c), axis=-1))
-        # A degenerate (traced) triangle has orientation 0 and would pass every test: it holds nothing.
-        inside = ((orientation != 0) & (orientation * jnp.sum(x * jnp.cross(a, b), -1) >= 0)
-                  & (orientation * jnp.sum(x * jnp.cross(b, c), -1) >= 0)
-                  & (orientation * jnp.sum(x * jnp.cross(c, a), -1) >= 0))
-        return inside.astype(jnp.result_type(x, float))
+        return _polygon_indicator(self._vertices(), x)
 
     def boundary_sample(self, t):
-        vertices = self._vertices()
-        edges = [(vertices[k], vertices[(k + 1) % 3], vertices[(k + 2) % 3]) for k in range(3)]
-        lengths = [_arc_angle(start, end) for start, end, _ in edges]
-        perimeter = lengths[0] + lengths[1] + lengths[2]
-        position = t[..., 0] * perimeter
-        first = position < lengths[0]
-        second = ~first & (position < lengths[0] + lengths[1])
-        # The edge that holds the point, and how far along it (in radians) the point lies.
-        along = jnp.where(first, position, jnp.where(second, position - lengths[0],
-                                                     position - lengths[0] - lengths[1]))
+        return _polygon_boundary(self._vertices(), t)
 
-        def on_edge(k):
-            start, end, opposite = edges[k]
-            angle = lengths[k]
-            fraction = jnp.clip(safe_div(along, angle), 0.0, 1.0)
-            # slerp: sin((1-s)Θ)/sinΘ start + sin(sΘ)/sinΘ end; an arc of length Θ < π.
-            sin_angle = jnp.sin(angle)
-            y = (safe_div(jnp.sin((1.0 - fraction) * angle), sin_angle)[..., None] * start
-                 + safe_div(jnp.sin(fraction * angle), sin_angle)[..., None] * end)
-            # An arc of length 0 or π (the viewpoint on an edge's line) has no great-circle plane: its
-            # normal is taken as 0, so it adds nothing (a measure-zero configuration) instead of NaN.
-            cross = jnp.cross(start, end)
-            length = _norm(cross)[..., None]
-            plane = cross / jnp.where(length > 0, length, 1.0)
-            side = jnp.sign(jnp.sum(plane * opposite, axis=-1))
-            return y, -side[..., None] * plane
 
-        (y0, n0), (y1, n1), (y2, n2) = on_edge(0), on_edge(1), on_edge(2)
-        pick = lambda v0, v1, v2: jnp.where(first[..., None], v0, jnp.where(second[..., None], v1, v2))
-        pdf = safe_div(1.0, perimeter) * jnp.ones_like(t[..., 0])
-        return pick(y0, y1, y2), pick(n0, n1, n2), pdf
+@pytree_dataclass
+class SphericalPolygon:
+    """A convex spherical polygon with K >= 3 vertices (a (K, 3) array, normalised here, in order
+    around it, either way): the directions inside every edge's great circle. The boundary, the
+    indicator and the sampling are the triangle's (`SphericalTriangle`) with K edges; the normal of
+    an edge is signed away from the next vertex after it, which for a convex polygon is inside.
+    Solid angle: the fan of triangles from the first vertex. A non-convex polygon is outside the
+    documented range (its indicator would be the intersection of the edges' half-spheres).
+    """
+
+    vertices: jax.Array
+    boundary_dims: ClassVar[int] = 1
+
+    def __post_init__(self):
+        v = concrete_value(self.vertices)
+        if v is not None:
+            v = np.asarray(v, float)
+            if v.ndim != 2 or v.shape[0] < 3 or v.shape[1] != 3 or not np.all(np.isfinite(v)):
+                raise ValueError(f"SphericalPolygon: parameter 'vertices' must be a finite (K, 3) array with K >= 3; "
+                                 f"got shape {v.shape}")
+            _check_not_degenerate("SphericalPolygon", "'vertices'", list(v[:3]))
+
+    def _vertices(self):
+        return _unit(self.vertices)
+
+    def solid_angle(self):
+        return _polygon_solid_angle(self._vertices())
+
+    def indicator(self, x):
+        return _polygon_indicator(self._vertices(), x)
+
+    def boundary_sample(self, t):
+        return _polygon_boundary(self._vertices(), t)
+
+
+def _check_not_degenerate(owner, names, vertices):
+    values = [concrete_value(v) for v in vertices]
+    if all(v is not None for v in values):
+        a, b, c = (np.asarray(v, float) / np.linalg.norm(v) for v in values)
+        if abs(a @ np.cross(b, c)) < 1e-12:
+            raise ValueError(f"{owner}: parameters {names} must not lie on one great circle "
+                             "(a degenerate polygon of zero solid angle)")
 
 
 @pytree_dataclass
