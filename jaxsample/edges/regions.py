@@ -172,8 +172,21 @@ def _polygon_solid_angle(vertices):
     return total
 
 
+class _ConvexSpherical:
+    """What a convex spherical polygon does with its (K, 3) unit vertices (`_vertices()`)."""
+
+    def solid_angle(self):
+        return _polygon_solid_angle(self._vertices())
+
+    def indicator(self, x):
+        return _polygon_indicator(self._vertices(), x)
+
+    def boundary_sample(self, t):
+        return _polygon_boundary(self._vertices(), t)
+
+
 @pytree_dataclass
-class SphericalTriangle:
+class SphericalTriangle(_ConvexSpherical):
     """The spherical triangle of directions spanned by a, b, c (normalised here): the directions
     ω = (λ_a a + λ_b b + λ_c c)/|...| with λ ≥ 0, i.e. the directions in which a point sees the flat
     triangle with vertices at a, b, c relative to it. Its boundary is three great-circle arcs.
@@ -197,18 +210,9 @@ class SphericalTriangle:
     def _vertices(self):
         return jnp.stack([_unit(self.a), _unit(self.b), _unit(self.c)])
 
-    def solid_angle(self):
-        return _polygon_solid_angle(self._vertices())
-
-    def indicator(self, x):
-        return _polygon_indicator(self._vertices(), x)
-
-    def boundary_sample(self, t):
-        return _polygon_boundary(self._vertices(), t)
-
 
 @pytree_dataclass
-class SphericalPolygon:
+class SphericalPolygon(_ConvexSpherical):
     """A convex spherical polygon with K >= 3 vertices (a (K, 3) array, normalised here, in order
     around it, either way): the directions inside every edge's great circle. The boundary, the
     indicator and the sampling are the triangle's (`SphericalTriangle`) with K edges; the normal of
@@ -231,15 +235,6 @@ class SphericalPolygon:
 
     def _vertices(self):
         return _unit(self.vertices)
-
-    def solid_angle(self):
-        return _polygon_solid_angle(self._vertices())
-
-    def indicator(self, x):
-        return _polygon_indicator(self._vertices(), x)
-
-    def boundary_sample(self, t):
-        return _polygon_boundary(self._vertices(), t)
 
 
 def _check_not_degenerate(owner, names, vertices):

@@ -77,8 +77,7 @@ class TriangleLightDirections(Sampler):
     def inverse(self, x):
         """The uniforms whose warp is direction x: the triangle's inverse at the ray's hit point
         (the plane's, for a ray that misses: clipped into the unit square)."""
-        normal = self._unit_normal()
-        t = safe_div(jnp.sum((jnp.asarray(self.triangle.a) - self.point) * normal, axis=-1), jnp.sum(x * normal, axis=-1))
+        _, t = _intersect(self.triangle, self.point, x)  # t: the distance to the plane, hit or not
         return self.triangle.inverse(self.point + t[..., None] * x)
 
     def domain(self):
@@ -129,9 +128,8 @@ class TriangleLight:
         """(L_i, p(ω)) just inside the silhouette at rim directions `wi`: the radiance of the face
         seen (L from the front, 0 from the back) and d²/(A |cos θ_l|) at the rim, d the distance
         along wi to the triangle's plane."""
-        normal = self.triangle._normal()[0]
-        cos_light = jnp.sum(wi * normal, axis=-1)
-        distance = safe_div(jnp.sum((jnp.asarray(self.a) - point) * normal, axis=-1), cos_light)
+        cos_light = jnp.sum(wi * self.triangle._normal()[0], axis=-1)
+        _, distance = _intersect(self.triangle, jnp.asarray(point), wi)  # to the plane, hit or not
         pdf = safe_div(distance * distance, self.triangle.area * jnp.abs(cos_light))
         radiance = jnp.where(cos_light < 0, self.radiance, 0.0).astype(pdf.dtype)
         return radiance, pdf
