@@ -218,24 +218,22 @@ class _Shading:
         return total
 
 
-def _boundary_surrogate(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, u):
+def _boundary_surrogate(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, seed):
     shading = _Shading(point, normal, wo, brdf, lights, mode)
-    return shading.boundary_values(_rim_uniforms(jax.lax.stop_gradient(u), rims), strategy, exponent)
+    return shading.boundary_values(_rim_uniforms(jax.lax.stop_gradient(seed), rims), strategy, exponent)
 
 
 @functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2, 3))
-def _boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, u):
-    """Zeros (count,) whose derivative is the silhouettes' boundary term for `strategy` and `mode`.
+def _with_boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, seed, values):
+    """`values` (the interior estimate's per-evaluation values), whose derivative gains the
+    silhouettes' boundary term for `strategy` and `mode`.
 
-    A custom JVP so that an estimate that is never differentiated does not evaluate the rim at
-    all, and so that a gradient that no term here can make unbiased is refused when it is asked
-    for (`_refuse`), not whenever `shade` runs."""
-    return _zeros_like_rows(u)
-
-
-def _zeros_like_rows(u):
-    # Zeros computed from u, so that under `vmap` they carry u's batch axis (as the tangent does).
-    return 0.0 * u[:, 0]
+    A custom JVP whose value is `values` itself: an estimate that is never differentiated runs
+    exactly the program it ran before (the rim seed is dead code there, and XLA drops it; adding a
+    term of value 0 instead cost 14-27 % of the value path, which XLA cannot simplify away), and a
+    gradient that no term here can make unbiased is refused when it is asked for (`_refuse`), not
+    whenever `shade` runs."""
+    return values
 
 
 def _is_zero(tangent) -> bool:
@@ -284,19 +282,20 @@ def _instantiate(primal, tangent):
 
 
 def _boundary_jvp(strategy, mode, exponent, rims, primals, tangents):
-    *inputs, u = primals
-    _refuse(strategy, mode, inputs[4], tangents[:5])
-    zeros = _zeros_like_rows(u)
-    if all(_is_zero(tangent) for tangent in tangents) or rims == 0:
-        return zeros, zeros
-    tangents = jax.tree_util.tree_map(lambda t, p: _instantiate(p, t), tangents, tuple(primals),
-                                      is_leaf=lambda v: isinstance(v, SymbolicZero))
-    _, tangent = jax.jvp(functools.partial(_boundary_surrogate, strategy, mode, exponent, rims), tuple(primals),
-                         tuple(tangents))
-    return zeros, tangent
+    *inputs, values = primals          # point, normal, wo, brdf, lights, seed; the interior values
+    *input_tangents, values_tangent = tangents
+    _refuse(strategy, mode, inputs[4], input_tangents[:5])
+    values_tangent = _instantiate(values, values_tangent)
+    if all(_is_zero(tangent) for tangent in input_tangents) or rims == 0:
+        return values, values_tangent
+    input_tangents = jax.tree_util.tree_map(lambda t, p: _instantiate(p, t), tuple(input_tangents), tuple(inputs),
+                                            is_leaf=lambda v: isinstance(v, SymbolicZero))
+    _, tangent = jax.jvp(functools.partial(_boundary_surrogate, strategy, mode, exponent, rims),
+                         tuple(inputs), input_tangents)
+    return values, values_tangent + tangent
 
 
-_boundary_term.defjvp(_boundary_jvp, symbolic_zeros=True)
+_with_boundary_term.defjvp(_boundary_jvp, symbolic_zeros=True)
 
 
 @compiled_entry("n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
@@ -382,13 +381,18 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
 
     def values_fn(u):
         # Each evaluation (pair, for "mis") carries one rim point per light with a silhouette.
-        return interior(u) + _boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf,
-                                            shading.lights, u)
+        return _with_boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf, shading.lights,
+                                   _rim_seed(u), interior(u))
 
     return values_fn, dims, count
 
 
-def _rim_uniforms(u, rims):
+def _rim_seed(u):
+    """u_0 + u_1 of each evaluation's uniforms: what its rim uniforms are made from (`_rim_uniforms`)."""
+    return u[:, 0] + u[:, 1]
+
+
+def _rim_uniforms(seed, rims):
     """One uniform per rim from the evaluation's own uniforms: t_j = frac(u_0 + u_1 + j φ), φ the golden
     ratio's fraction. A uniform plus anything independent of it is uniform mod 1: so t_j is exactly
     uniform for independent points and for Owen-scrambled Sobol' (each coordinate scrambled with its
@@ -397,12 +401,11 @@ def _rim_uniforms(u, rims):
     which the per-evaluation standard error accounts for. Drawing fresh
     uniforms instead cost a third Philox output per evaluation: +50 % on BRDF sampling's value,
     which never needs the term (measured; `benchmarks/`)."""
-    total = u[:, 0] + u[:, 1]
     columns = []
     for j in range(rims):
-        shifted = total + np.float32(j * 0.6180339887498949)
+        shifted = seed + np.float32(j * 0.6180339887498949)
         columns.append(shifted - jnp.floor(shifted))
-    return jnp.stack(columns, axis=-1) if columns else jnp.zeros(u.shape[:1] + (0,), u.dtype)
+    return jnp.stack(columns, axis=-1) if columns else jnp.zeros(seed.shape + (0,), seed.dtype)
 
 
 @compiled_entry("make", "n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
