@@ -11,7 +11,7 @@ The folders are the layers (docs/design.md): `_core` (numerics, pytrees, paramet
 """
 
 from . import edges, gradients, numerics, quadrature, scene, uniforms
-from .estimators import (Estimate, EstimateUntil, estimate, estimate_antithetic, estimate_control_variate,
+from .estimators import (Estimate, EstimateUntil, UnreliableEstimateWarning, estimate, estimate_antithetic, estimate_control_variate,
                          estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation,
                          expectation_grad, expectation_values, integrand_values)
 from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, Oriented, PhongLobe,
@@ -48,6 +48,7 @@ __all__ = [
     # estimators
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
     "estimate_control_variate", "integrand_values", "estimate_until", "EstimateUntil",
+    "UnreliableEstimateWarning",
     # gradients
     "expectation", "expectation_values", "estimate_grad", "expectation_grad",
     # modules

@@ -8,7 +8,9 @@ function in `jax.jit`: the arguments that fix the program (the integrand, `n`, t
 mode, the mesh, ...) are static, everything else (samplers, parameters, keys) is traced, so a
 second call with the same integrand and new parameter values or keys reuses the program.
 
-Inside an enclosing `jit`, `vmap` or `grad` nothing changes (a nested `jit` is inlined). A call
+Called eagerly, the estimates it returns are checked (`estimators.diagnostics.warn_if_unreliable`):
+an unreliable one emits an `UnreliableEstimateWarning`. Inside an enclosing `jit`, `vmap` or `grad`
+nothing changes (a nested `jit` is inlined, and no value can be inspected). A call
 whose static arguments cannot be hashed (a traced `n`, an unhashable callable) or whose traced
 arguments are not arrays or numbers runs the function as written, so that its own checks give
 their usual messages.
@@ -67,10 +69,15 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = ()) -> Callable:
             if "key" in arguments:
                 arguments["key"] = as_key(arguments["key"], fn.__name__)
             dynamic = [value for name, value in arguments.items() if name not in static]
+            from ..estimators.diagnostics import warn_if_unreliable
+
             if (all(_hashable(arguments[name]) for name in static if name in arguments)
                     and array_leaves(dynamic)):
-                return jitted(*bound.args, **bound.kwargs)
-            return fn(*bound.args, **bound.kwargs)
+                result = jitted(*bound.args, **bound.kwargs)
+            else:
+                result = fn(*bound.args, **bound.kwargs)
+            warn_if_unreliable(result, fn.__name__)
+            return result
 
         return entry
 

@@ -2,9 +2,11 @@
 streaming engine (`engine.run_stream`: constant memory, counter-based uniforms, jit/vmap/grad and a
 device mesh); the result type (`result.Estimate`); the plain estimator (`plain`); MIS (`mis`) and
 variance reduction (`variance_reduction`); gradients (`gradients`), gradients with their standard
-errors (`gradient_errors`) and estimates to a requested accuracy (`until`)."""
+errors (`gradient_errors`), estimates to a requested accuracy (`until`) and the diagnostics every
+estimate carries (`diagnostics`)."""
 
-from . import gradients
+from . import diagnostics, gradients
+from .diagnostics import UnreliableEstimateWarning
 from .engine import DEFAULT_CHUNK_SIZE, run_stream
 from .gradient_errors import estimate_grad, expectation_grad
 from .gradients import expectation, expectation_values
@@ -18,4 +20,5 @@ __all__ = [
     "Estimate", "estimate", "integrand_values", "run_stream", "DEFAULT_CHUNK_SIZE", "estimate_mis",
     "estimate_ratio", "estimate_antithetic", "estimate_control_variate", "expectation", "expectation_values",
     "gradients", "estimate_grad", "expectation_grad", "estimate_until", "EstimateUntil",
+    "diagnostics", "UnreliableEstimateWarning",
 ]

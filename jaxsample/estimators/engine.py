@@ -56,6 +56,7 @@ from .._core.lanes import lane_map
 from .._core.numerics import safe_div, safe_sqrt
 from ..uniforms import Source, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, Index, offset_at, token
+from .diagnostics import ROUNDING_ULPS, chunk_tail, empty_tail, largest, merge_tails, pareto_khat, tail_bins, tail_size
 from .result import Estimate
 
 __all__ = ["run_stream", "tree_sum", "DEFAULT_CHUNK_SIZE"]
@@ -83,19 +84,25 @@ def tree_sum(values: jax.Array) -> jax.Array:
 
 @pytree_dataclass
 class _Moments:
-    """Running statistics of a stream: per-replicate compensated sums, M2, max |Y|, Σ|Y|, count."""
+    """Running statistics of a stream: per-replicate compensated sums, M2, max |Y|, Σ|Y|, the
+    largest |Y| (the tail the diagnostics fit), the count of nonzero Y, count."""
 
     sums: jax.Array          # (R, *out): Σ Y per replicate (high part)
     compensation: jax.Array  # (R, *out): the low part lost by the additions (TwoSum)
     m2: jax.Array            # (*out): Σ (Y - mean)²
     max_abs: jax.Array
     sum_abs: jax.Array
+    tail: jax.Array          # (2, bins, *out): the two largest |Y| of each bin (diagnostics.py)
+    nonzero: jax.Array       # (*out): how many Y are nonzero (a float)
     count: jax.Array         # float: exact for the chunk multiples we use
 
 
-def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape) -> _Moments:
+def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape, bins: int,
+                   diagnostics: bool = True) -> _Moments:
     """Statistics of one chunk given as g arrays of values (*lanes, *out) (see Source.lanes:
-    group q holds the points g b + q of the chunk, b the C-order index over the lanes).
+    group q holds the points g b + q of the chunk, b the C-order index over the lanes), with the
+    tail state of the diagnostics in `bins` bins (`diagnostics=False`, for measuring their cost only: no tail,
+    every Y counted nonzero).
 
     With replicates R > 1, g divides R and the chunk's offset is a multiple of R.
     """
@@ -118,12 +125,20 @@ def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape) ->
     chunk_mean = per_replicate.sum(axis=0) / count
     m2 = tree_sum(sum((y - chunk_mean) * (y - chunk_mean) for y in groups))
     max_abs = functools.reduce(jnp.maximum, [jnp.max(jnp.abs(y), axis=0) for y in groups])
+    if diagnostics:
+        tail = functools.reduce(merge_tails, [chunk_tail(y, bins) for y in groups])
+        nonzero = sum(jnp.sum(jax.lax.stop_gradient(y) != 0, axis=0, dtype=first.dtype) for y in groups)
+    else:
+        tail = empty_tail(out_shape, first.dtype, bins)
+        nonzero = jnp.full(out_shape, float(count), first.dtype)
     return _Moments(
         sums=per_replicate,
         compensation=low,
         m2=m2,
         max_abs=max_abs,
         sum_abs=tree_sum(sum(jnp.abs(y) for y in groups)),
+        tail=tail,
+        nonzero=nonzero,
         count=jnp.asarray(count, first.dtype),
     )
 
@@ -138,13 +153,20 @@ def _merge(a: _Moments, b: _Moments) -> _Moments:
     sums, lost = doublefloat.two_sum(a.sums, b.sums)
     compensation = a.compensation + b.compensation + lost
     return _Moments(sums, compensation, m2, jnp.maximum(a.max_abs, b.max_abs),
-                    a.sum_abs + b.sum_abs, count)
+                    a.sum_abs + b.sum_abs, merge_tails(a.tail, b.tail), a.nonzero + b.nonzero, count)
 
 
-def _empty_moments(replicates: int, out_shape, dtype) -> _Moments:
+def _empty_moments(replicates: int, out_shape, dtype, bins: int) -> _Moments:
     zeros = jnp.zeros((replicates,) + out_shape, dtype)
     scalar = jnp.zeros(out_shape, dtype)
-    return _Moments(zeros, zeros, scalar, scalar, scalar, jnp.zeros((), dtype))
+    return _Moments(zeros, zeros, scalar, scalar, scalar, empty_tail(out_shape, dtype, bins), scalar,
+                    jnp.zeros((), dtype))
+
+
+def stderr_floor(sum_abs, count):
+    """The float rounding of the values averaged: `ROUNDING_ULPS` ulps of mean |Y| = sum_abs / count
+    (see `diagnostics.py`); the stderr is never reported below it."""
+    return ROUNDING_ULPS * float(jnp.finfo(sum_abs.dtype).eps) * (sum_abs / count)
 
 
 def _finish(m: _Moments, count: int, replicates: int) -> Estimate:
@@ -172,8 +194,10 @@ def _finish(m: _Moments, count: int, replicates: int) -> Estimate:
     sum_squares = m.m2 + n * mean * mean
     ess = jnp.where(finite, safe_div(m.sum_abs * m.sum_abs, sum_squares), 0.0)
     variance = jnp.where(finite, variance, jnp.inf)
+    stderr = jnp.maximum(stderr, stderr_floor(m.sum_abs, n))
     stderr = jnp.where(finite, stderr, jnp.inf)
     return Estimate(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
+                    khat=pareto_khat(largest(m.tail, tail_size(count) + 1), tail_size(count)), nonzero=m.nonzero / n,
                     n=count, replicates=replicates)
 
 
@@ -195,7 +219,7 @@ def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
 
 
 def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,
-            chunk_size: int, out_shape, aligned: int) -> _Moments:
+            chunk_size: int, out_shape, aligned: int, diagnostics: bool = True) -> _Moments:
     """Moments of values_fn over the points with global indices [base, base + count).
 
     `aligned`: every chunk offset is a multiple of it (it lets the sources take fast paths).
@@ -210,9 +234,10 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
         groups = source.lanes(seed, at, size, dims, dtype, total=total, aligned=aligned)
         # The g groups share each generator call: computed in one loop, stored once per chunk.
         values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], token(offset))
-        return _chunk_moments(values, replicates, out_shape)
+        return _chunk_moments(values, replicates, out_shape, bins, diagnostics)
 
-    moments = _empty_moments(replicates, out_shape, dtype)
+    bins = tail_bins(total, chunk_size)
+    moments = _empty_moments(replicates, out_shape, dtype, bins)
     steps, tail = divmod(count, chunk_size)
     if steps:
         chunk_body = jax.checkpoint(lambda offset: chunk(offset, chunk_size))
@@ -267,11 +292,13 @@ def _check_steps(owner: str, per_device: int, chunk_size: int) -> None:
 
 
 def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=None,
-               chunk_size=None, out_shape=(), dtype=None, owner="estimate") -> Estimate:
+               chunk_size=None, out_shape=(), dtype=None, owner="estimate",
+               diagnostics: bool = True) -> Estimate:
     """The engine behind every estimator: the Estimate of values_fn(u) over n points.
 
     `values_fn` maps a (count, dims) block of uniforms to (count, *out_shape) values; it must be
-    elementwise over the block (point i's value depends on u_i only).
+    elementwise over the block (point i's value depends on u_i only). `diagnostics=False` leaves
+    out the streamed tail and nonzero count (k-hat -inf, nonzero 1): only to measure their cost.
     """
     source = as_source(uniforms)
     replicates = source.replicates
@@ -284,7 +311,7 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
 
     if mesh is None:
         moments = _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape,
-                          chunk_size)
+                          chunk_size, diagnostics)
         return _finish(moments, n, replicates)
 
     per_device = n // devices
@@ -294,7 +321,7 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
         device = jax.lax.axis_index(axes)
         base = offset_at(0, device.astype(jnp.uint32), per_device, n > NARROW_LIMIT)
         m = _stream(values_fn, source, seed, dims, dtype, base, per_device, n, chunk_size,
-                    out_shape, math.gcd(per_device, chunk_size))
+                    out_shape, math.gcd(per_device, chunk_size), diagnostics)
         # Combine devices: compensated sums are added, M2 merged about the global mean.
         # The per-replicate sums are gathered and added in double-float (a psum would round them).
         sums, low = doublefloat.sum_axis0(jax.lax.all_gather(m.sums, axes), leaf=1)
@@ -305,8 +332,11 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
         m2 = jax.lax.psum(m.m2 + float(per_device) * shift * shift, axes)
         # max |Y| is a diagnostic with no derivative (and pmax has no differentiation rule, so
         # without the stop a gradient of a sharded estimate failed).
+        # The devices' tail states side by side: (2, devices x bins, *out).
+        tails = jax.lax.all_gather(jax.lax.stop_gradient(m.tail), axes, axis=1, tiled=True)
         return _Moments(sums, low, m2, jax.lax.pmax(jax.lax.stop_gradient(m.max_abs), axes),
-                        jax.lax.psum(m.sum_abs, axes), jnp.asarray(float(n), dtype))
+                        jax.lax.psum(m.sum_abs, axes), tails,
+                        jax.lax.psum(jax.lax.stop_gradient(m.nonzero), axes), jnp.asarray(float(n), dtype))
 
     from jax.sharding import PartitionSpec
 

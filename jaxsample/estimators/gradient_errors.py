@@ -19,6 +19,8 @@ ValueError; differentiate one real component per call (`f(w)["a"]`, `f(w).real`)
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Any, Callable
 
 import jax
@@ -64,8 +66,7 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
         return jax.vmap(one)(u)
 
     est = run_stream(values_fn, dims, key, n, out_shape=flat.shape, owner=owner, **kw)
-    return Estimate(mean=unravel(est.mean), stderr=unravel(est.stderr), variance=unravel(est.variance),
-                    max_abs=unravel(est.max_abs), ess=unravel(est.ess), n=est.n, replicates=est.replicates)
+    return dataclasses.replace(jax.tree_util.tree_map(unravel, est), gradient=True)
 
 
 @compiled_entry("make", "n", "mode", "uniforms", "mesh", "chunk_size", "dtype")

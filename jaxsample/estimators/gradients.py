@@ -44,6 +44,8 @@ per-sample gradients: `jax.vmap(jax.grad(...))` over rows of u of `integrand_val
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Any, Callable
 
 import jax
@@ -241,6 +243,5 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
     mean_g, mean_g_score, mean_score = est.mean[0], est.mean[1], est.mean[2]
     count = float(est.n)
     correction = (count / (count - 1.0)) * (mean_g_score - jax.lax.stop_gradient(mean_g) * mean_score)
-    return layout.unpack_result(Estimate(mean=mean_g + correction, stderr=est.stderr[0], variance=est.variance[0],
-                                         max_abs=est.max_abs[0], ess=est.ess[0], n=est.n,
-                                         replicates=est.replicates))
+    return layout.unpack_result(dataclasses.replace(jax.tree_util.tree_map(lambda leaf: leaf[0], est),
+                                                    mean=mean_g + correction))

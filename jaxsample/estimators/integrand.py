@@ -44,7 +44,7 @@ __all__ = ["IntegrandLayout", "integrand_layout", "layout_of", "require_real", "
            "STATISTICS"]
 
 # The fields of `Estimate` and `EstimateUntil` that have the shape of f's value.
-STATISTICS = ("mean", "stderr", "variance", "max_abs", "ess")
+STATISTICS = ("mean", "stderr", "variance", "max_abs", "ess", "khat", "nonzero")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -109,7 +109,11 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
                                 out_shape=layout.out_shape))
     total = sum(sizes)
     stderr = safe_sqrt(sum(p.stderr * p.stderr for p in parts))
+    # Diagnostics: the heaviest technique's tail decides; nonzero counts add up.
     est = Estimate(mean=sum(p.mean for p in parts), stderr=stderr, variance=float(total) * stderr * stderr,
                    max_abs=jnp.max(jnp.stack([p.max_abs for p in parts]), axis=0),
-                   ess=sum(p.ess for p in parts), n=total, replicates=parts[0].replicates)
+                   ess=sum(p.ess for p in parts),
+                   khat=functools.reduce(jnp.fmax, [p.khat for p in parts]),
+                   nonzero=sum(p.nonzero * float(p.n) for p in parts) / float(total),
+                   n=total, replicates=parts[0].replicates)
     return layout.unpack_result(est)

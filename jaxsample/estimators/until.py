@@ -42,10 +42,11 @@ from .._core.params import check_choice, default_float_dtype
 from .._core.pytree import pytree_dataclass
 from ..uniforms import Random, Sobol, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, offset_at
-from .engine import _MAX_STEPS, _chunk_moments, _empty_moments, _lane_values, _merge, _Moments
+from .diagnostics import MAX_TAIL, largest, pareto_khat, tail_bins, tail_size, verdict, warn_if_unreliable
+from .engine import _MAX_STEPS, _chunk_moments, _empty_moments, _lane_values, _merge, _Moments, stderr_floor
 from .integrand import integrand_layout
 from .plain import packed_values
-from .result import normal_interval
+from .result import interval
 
 __all__ = ["EstimateUntil", "estimate_until"]
 
@@ -54,9 +55,10 @@ __all__ = ["EstimateUntil", "estimate_until"]
 class EstimateUntil:
     """The result of `estimate_until`: an estimate from a data-dependent number of samples.
 
-    `mean`, `stderr`, `variance`, `max_abs`, `ess` as in `Estimate`; `n_used` (an int32 array, int64
-    for max_n >= 2^31 under x64: it is known only at run time) samples were used; `converged` says whether the tolerance was met
-    (False: `max_n` was reached first).
+    `mean`, `stderr`, `variance`, `max_abs`, `ess`, `khat`, `nonzero`, `reliable` and `diagnostics` as in
+    `Estimate`; `n_used` (an int32 array, int64 for max_n >= 2^31 under x64: it is known only at run
+    time) samples were used; `converged` says whether the tolerance was met (False: `max_n` was
+    reached first).
     """
 
     mean: jax.Array
@@ -64,14 +66,33 @@ class EstimateUntil:
     variance: jax.Array
     max_abs: jax.Array
     ess: jax.Array
+    khat: jax.Array
+    nonzero: jax.Array
     n_used: jax.Array
     converged: jax.Array
     max_n: int = 0
     replicates: int = 1
 
+    @property
+    def reliable(self) -> jax.Array:
+        """As `Estimate.reliable`: finite, enough nonzero Y, Pareto k-hat below 0.5."""
+        return verdict(self.mean, self.stderr, self.khat, self.nonzero, self.n_used)
+
+    @property
+    def diagnostics(self) -> dict:
+        """As `Estimate.diagnostics` (`ess_fraction` is ess / n_used)."""
+        return {"khat": self.khat, "nonzero": self.nonzero,
+                "ess_fraction": self.ess / self.n_used.astype(self.ess.dtype), "reliable": self.reliable}
+
+    @property
+    def n(self) -> jax.Array:
+        """The samples used (`n_used`), the name `Estimate` gives it."""
+        return self.n_used
+
     def interval(self, level: float = 0.95):
-        """Normal-approximation interval mean ± z stderr (see the module docstring on coverage)."""
-        return normal_interval(self.mean, self.stderr, level)
+        """mean ± q stderr: q normal for independent points, Student's t with R - 1 degrees of
+        freedom for R replicates (see the module docstring on coverage after sequential stopping)."""
+        return interval(self.mean, self.stderr, level, self.replicates)
 
 
 def _statistics(m: _Moments, count, replicates: int):
@@ -94,9 +115,16 @@ def _statistics(m: _Moments, count, replicates: int):
     else:
         stderr = safe_sqrt(spread / (replicates - 1) / replicates)
     ess = safe_div(m.sum_abs * m.sum_abs, m.m2 + count * mean * mean)
+    stderr = jnp.maximum(stderr, stderr_floor(m.sum_abs, count))
     # A NaN or infinite mean (an invalid traced parameter, a non-finite value) has no error bar.
     stderr = jnp.where(jnp.isfinite(mean), stderr, jnp.inf)
     return mean, stderr, variance, ess
+
+
+def _tail_count(count):
+    """`diagnostics.tail_size` of a traced count: min(n / 5, ⌈3 √n⌉, MAX_TAIL), at least 1."""
+    m = jnp.minimum(jnp.floor(count / 5.0), jnp.ceil(3.0 * jnp.sqrt(count)))
+    return jnp.clip(m, 1, MAX_TAIL).astype(jnp.int32)
 
 
 def _refuse_gradients(closed_consts):
@@ -178,7 +206,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
         offset = offset_at(0, steps.astype(jnp.uint32), chunk, wide)
         at = offset if offset.wide else offset.lo
         groups = source.lanes(seed, at, chunk, dims, dtype, total=None, aligned=chunk)
-        return _chunk_moments([_lane_values(values_fn, lanes) for lanes in groups], replicates, out_shape)
+        return _chunk_moments([_lane_values(values_fn, lanes) for lanes in groups], replicates, out_shape, bins)
 
     per_chunk = chunk // replicates
 
@@ -207,10 +235,16 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
         met = jnp.all(stderr <= tolerance) & (steps >= min_steps) & at_net(steps)
         return moments, steps, met
 
-    init = (_empty_moments(replicates, out_shape, dtype), jnp.int32(0), jnp.bool_(False))
+    bins = tail_bins(max_n, chunk)
+    init = (_empty_moments(replicates, out_shape, dtype, bins), jnp.int32(0), jnp.bool_(False))
     moments, steps, converged = jax.lax.while_loop(cond, body, init)
-    mean, stderr, variance, ess = _statistics(moments, steps.astype(dtype) * float(chunk), replicates)
+    used = steps.astype(dtype) * float(chunk)
+    mean, stderr, variance, ess = _statistics(moments, used, replicates)
+    khat = pareto_khat(largest(moments.tail, tail_size(max_n) + 1), _tail_count(used))
     n_used = steps.astype(count_dtype) * jnp.asarray(chunk, count_dtype)   # int64: x64 is on
     result = EstimateUntil(mean=mean, stderr=stderr, variance=variance, max_abs=moments.max_abs, ess=ess,
+                           khat=khat, nonzero=moments.nonzero / jnp.maximum(used, 1.0),
                            n_used=n_used, converged=converged, max_n=max_n, replicates=replicates)
-    return layout.unpack_result(result)
+    result = layout.unpack_result(result)
+    warn_if_unreliable(result, "estimate_until")
+    return result

@@ -17,6 +17,8 @@ a pytree or complex h or g is a TypeError).
 
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Callable
 
 import jax
@@ -26,7 +28,7 @@ from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from ..samplers.base import check_unbatched, checked
 from .._core.params import default_float_dtype
-from .engine import run_stream
+from .engine import run_stream, stderr_floor
 from .integrand import integrand_layout, require_real_scalar
 from .plain import _detach, broadcast_like, check_mode, packed_values
 from .result import Estimate
@@ -83,9 +85,14 @@ def estimate_ratio(f: Callable, h: Callable, sampler, key: jax.Array, n: int, *,
     ratio = safe_div(mean_y, mean_z)
     linear_var = jnp.maximum(var_y - 2.0 * ratio * cov + ratio * ratio * var_z, 0.0)
     variance = safe_div(linear_var, mean_z * mean_z)
-    return layout.unpack_result(Estimate(mean=ratio, stderr=safe_sqrt(variance / float(est.n)), variance=variance,
-                                         max_abs=est.max_abs[0], ess=est.ess[0], n=est.n,
-                                         replicates=est.replicates))
+    return layout.unpack_result(dataclasses.replace(
+        jax.tree_util.tree_map(lambda leaf: leaf[0], est), mean=ratio, variance=variance, khat=_worst_tail(est),
+        stderr=jnp.maximum(safe_sqrt(variance / float(est.n)), stderr_floor(jnp.abs(ratio), 1.0))))
+
+
+def _worst_tail(est):
+    """The heavier of the two streams' tails (Y = f/p and Z): either makes the combination unreliable."""
+    return jnp.fmax(est.khat[0], est.khat[1])
 
 
 @compiled_entry("f", "n", "mode", "uniforms", "chunk_size", "dtype", "mesh")
@@ -142,6 +149,6 @@ def estimate_control_variate(f: Callable, g: Callable, g_integral, sampler, key:
     coefficient = safe_div(cov, var_z)
     mean = est.mean[0] - coefficient * (est.mean[1] - g_integral)
     variance = jnp.maximum(var_y - coefficient * cov, 0.0)
-    return layout.unpack_result(Estimate(mean=mean, stderr=safe_sqrt(variance / float(est.n)), variance=variance,
-                                         max_abs=est.max_abs[0], ess=est.ess[0], n=est.n,
-                                         replicates=est.replicates))
+    return layout.unpack_result(dataclasses.replace(
+        jax.tree_util.tree_map(lambda leaf: leaf[0], est), mean=mean, variance=variance, khat=_worst_tail(est),
+        stderr=jnp.maximum(safe_sqrt(variance / float(est.n)), stderr_floor(jnp.abs(mean), 1.0))))

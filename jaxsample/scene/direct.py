@@ -47,6 +47,8 @@ light's own parameters outside attached light sampling of that light alone).
 
 from __future__ import annotations
 
+import dataclasses
+
 import functools
 from typing import Any, Callable
 
@@ -441,5 +443,4 @@ def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh,
                      out_shape=flat.shape, dtype=dtype, owner="shade_grad")
     if count != n:
         est = est.per_evaluation(n)
-    return Estimate(mean=unravel(est.mean), stderr=unravel(est.stderr), variance=unravel(est.variance),
-                    max_abs=unravel(est.max_abs), ess=unravel(est.ess), n=est.n, replicates=est.replicates)
+    return dataclasses.replace(jax.tree_util.tree_map(unravel, est), gradient=True)

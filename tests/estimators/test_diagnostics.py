@@ -1,0 +1,225 @@
+"""The diagnostics on every estimate (`jaxsample.estimators.diagnostics`): k-hat against an
+independent fit and known shapes, each confident-wrong program flagged, honest estimates not,
+the stderr floor, Student-t intervals from replicates, and the warning."""
+
+import math
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxsample as js
+from jaxsample import edges
+from jaxsample.estimators import diagnostics
+from jaxsample.estimators.result import student_t_quantile
+
+N = 1 << 14
+_SEEDS = iter(range(1000, 2000))
+
+
+def _key():
+    """A fresh key per estimate (the suite's key-reuse checker is on)."""
+    return jax.random.key(next(_SEEDS))
+
+
+def _gpd_fit_numpy(x: np.ndarray) -> float:
+    """Independent float64 reference: the generalized Pareto shape by maximum profile likelihood
+    over a fine grid of θ = -ξ/σ (no Zhang-Stephens weighting, no prior), for exceedances x > 0."""
+    x = np.sort(np.asarray(x, np.float64))
+    n = x.size
+    # θ < 1/max x; heavy tails have θ < 0. A log-spaced grid on both sides of 0.
+    scale = 1.0 / x[-1]
+    grid = np.concatenate([-np.logspace(-6, 4, 4000) * scale, (1.0 - np.logspace(-6, 0, 2000)[::-1]) * scale])
+    xi = np.mean(np.log1p(-grid[:, None] * x[None]), axis=1)
+    profile = n * (np.log(-grid / xi) - xi - 1.0)
+    return float(xi[np.nanargmax(profile)])
+
+
+@pytest.mark.parametrize("shape", [0.2, 0.5, 0.9])
+def test_khat_recovers_known_pareto_shapes_and_agrees_with_an_independent_fit(shape):
+    """Y = u^(-ξ), u uniform, has a Pareto tail of shape ξ exactly. Over 24 independent sets of
+    2^14 values: the mean k-hat (64 or more tail values each, the PSIS prior shrinking it towards
+    0.5 by 10/(M + 10)) is within 0.06 of the shape, and each k-hat within 0.08 of a float64
+    maximum-likelihood fit of the same tail written here (before the prior's shrinkage)."""
+    rng = np.random.default_rng(int(shape * 10))
+    m = diagnostics.tail_size(N)
+    estimates = []
+    for _ in range(24):
+        y = rng.uniform(size=N) ** (-shape)
+        top = np.sort(y)[::-1][: m + 1]
+        khat = float(diagnostics.pareto_khat(jnp.asarray(top, jnp.float32)[:, None], m)[0])
+        mle = _gpd_fit_numpy(top[:m] - top[m])
+        shrunk = (m * mle + 10 * 0.5) / (m + 10)
+        assert abs(khat - shrunk) < 0.08, (khat, shrunk)
+        estimates.append(khat)
+    expected = (m * shape + 10 * 0.5) / (m + 10)
+    assert abs(np.mean(estimates) - expected) < 0.06, (np.mean(estimates), expected)
+
+
+def test_tail_state_holds_the_largest_values():
+    """`chunk_tail` / `merge_tails` / `largest` return exactly the M + 1 largest |Y| of values whose
+    order does not depend on their index (a triple in one bin, probability 4e-5 here, is the only
+    way to differ), over chunks of every length, padded ones included."""
+    rng = np.random.default_rng(3)
+    y = rng.standard_cauchy(size=3 * diagnostics.BINS + 1000).astype(np.float32)
+    chunks = np.split(y, [5000, 2 * diagnostics.BINS + 5000])
+    state = diagnostics.empty_tail((), jnp.float32)
+    for chunk in chunks:
+        state = diagnostics.merge_tails(state, diagnostics.chunk_tail(jnp.asarray(chunk)))
+    keep = 65
+    np.testing.assert_array_equal(np.asarray(diagnostics.largest(state, keep)), np.sort(np.abs(y))[::-1][:keep])
+
+
+def test_streamed_khat_is_the_fit_to_the_samples_averaged():
+    """The k-hat of `estimate` is the fit to the largest |Y| of the very samples averaged: equal to
+    the fit to the top values of the same points drawn as one block, the same for chunk sizes that
+    keep the bins (multiples of 2 x BINS), and within 0.02 for another chunking."""
+    f = lambda x: x[0] ** -0.6
+    box = js.UniformBox(jnp.array([0.0]), jnp.array([1.0]))
+    n = 1 << 15
+    key = _key()
+    results = [js.estimate(f, box, jax.random.clone(key), n, chunk_size=c) for c in (1 << 15, 1 << 14, 4000)]
+    u = js.uniforms.uniform_block("random", jax.random.clone(key), 0, n, 1)
+    y = np.sort(np.asarray(u[:, 0], np.float64) ** -0.6)[::-1]
+    m = diagnostics.tail_size(n)
+    direct = float(diagnostics.pareto_khat(jnp.asarray(y[: m + 1], jnp.float32)[:, None], m)[0])
+    assert float(results[0].khat) == pytest.approx(direct, abs=1e-4)
+    assert float(results[1].khat) == float(results[0].khat)
+    assert float(results[2].khat) == pytest.approx(direct, abs=0.02)
+    assert 0.45 < direct < 0.75   # the shape is 0.6
+
+
+# ---------------------------------------------------------------------------------------------
+# The programs that returned confident wrong numbers: each flagged
+# ---------------------------------------------------------------------------------------------
+
+NORMALS = js.UniformSphere().warp(jax.random.uniform(jax.random.key(7), (64, 2)))
+
+
+def _lobe_batch(sampler_of, exponent, n=N):
+    def one(normal, key):
+        f = lambda w: jnp.maximum(w @ normal, 0.0) ** exponent
+        return js.estimate(f, sampler_of(normal), key, n)
+    return jax.jit(jax.vmap(one))(NORMALS, jax.random.split(_key(), NORMALS.shape[0]))
+
+
+def test_unoriented_phong_lobe_is_flagged_wherever_it_is_wrong():
+    """∫ max(ω·n, 0)^5 dω = π/3 with PhongLobe(5) about z, 64 normals: every estimate more than
+    4 stderr from π/3 is flagged (most are: f/p has tail index 5/6 near the lobe's horizon), as is
+    every estimate whose samples all miss f (k = 20)."""
+    for exponent in (5, 20):
+        est = _lobe_batch(lambda normal: js.PhongLobe(float(exponent)), exponent)
+        z = np.asarray((est.mean - 2 * np.pi / (exponent + 1)) / est.stderr)
+        reliable = np.asarray(est.reliable)
+        assert not np.any(reliable & (np.abs(z) > 4)), (exponent, z[reliable])
+        assert np.mean(~reliable) > 0.8
+    missed = np.asarray(est.nonzero) == 0
+    assert missed.sum() >= 4 and not np.any(reliable[missed])
+
+
+def test_oriented_lobes_are_not_flagged():
+    """The honest version of the same batch (the lobe oriented to each normal: f/p constant up to
+    rounding) raises no flag at n = 2^10 and 2^14."""
+    for n in (1 << 10, N):
+        est = _lobe_batch(lambda normal: js.Oriented(js.PhongLobe(5.0), normal), 5, n)
+        assert bool(jnp.all(est.reliable)), np.asarray(est.khat)
+
+
+def test_infinite_variance_and_divergent_integrals_are_flagged():
+    """∫_H² cos θ with PhongLobe(20): f/p ∝ cos^-19 has tail index 21/19 (finite mean, infinite
+    variance); ∫_H² 1/(1 - cos θ) diverges (tail index 1). Both flagged; cosine sampling of
+    cos θ is not."""
+    for f, sampler in ((lambda w: w[2], js.PhongLobe(20.0)),
+                       (lambda w: 1.0 / (1.0 - w[2]), js.UniformHemisphere())):
+        est = js.estimate(f, sampler, _key(), N)
+        assert float(est.khat) > 0.7 and not bool(est.reliable)
+    assert bool(js.estimate(lambda w: w[2], js.CosineHemisphere(), _key(), N).reliable)
+
+
+def test_a_handful_of_nonzero_values_is_flagged():
+    """A Phong lobe about z for an integrand that lives near the horizon (x > 0.9): a few samples
+    reach it (about 63 of 2^14 for exponent 3, 14 for 5); the estimate rests on them: flagged."""
+    f = lambda w: jnp.maximum(w[0] - 0.9, 0.0)
+    for exponent in (3.0, 5.0):
+        est = js.estimate(f, js.PhongLobe(exponent), _key(), N)
+        assert 0 < float(est.nonzero) * N < float(diagnostics.required_nonzero(N)), exponent
+        assert not bool(est.reliable)
+
+
+def test_zero_variance_stderr_is_floored_at_rounding():
+    """Cosine sampling of ∫ cos θ: f/p = π up to float32 rounding; the stderr is two ulps of π
+    (not 1e-9 relative, which made z reach 930) and covers the error of the mean."""
+    for n in (1 << 12, 1 << 16):
+        est = js.estimate(lambda w: w[2], js.CosineHemisphere(), _key(), n)
+        assert float(est.stderr) >= 2 * np.finfo(np.float32).eps * np.pi * 0.999
+        assert abs(float(est.mean) - np.pi) <= 2 * float(est.stderr)
+        assert bool(est.reliable) and float(est.khat) == -np.inf
+
+
+def test_cap_indicator_derivative_is_no_longer_zero():
+    """d/dα ∫ 1[ω·a >= cos α] dω = 2π sin α: a masked integrand's boundary term makes it right."""
+    def make(alpha):
+        return edges.masked(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), alpha), lambda w: 1.0), js.UniformSphere()
+    g = js.estimate_grad(make, jnp.float32(0.7), _key(), 1 << 12)
+    assert float(g.mean) == pytest.approx(2 * np.pi * np.sin(0.7), rel=1e-4) and bool(g.reliable)
+
+
+def test_gradient_components_that_are_exactly_zero_are_not_flagged():
+    """A parameter the integrand does not depend on has per-sample gradients exactly 0: that is
+    not an unreliable gradient (the estimate of a value would be flagged)."""
+    def make(p):
+        return (lambda w: p["a"] * w[2] ** 3), js.CosineHemisphere()
+    g = js.estimate_grad(make, {"a": jnp.float32(1.0), "unused": jnp.float32(2.0)}, _key(), 1 << 12)
+    assert float(g.mean["unused"]) == 0.0 and bool(g.reliable["unused"]) and bool(g.reliable["a"])
+
+
+# ---------------------------------------------------------------------------------------------
+# Intervals from replicates, the warning, the repr
+# ---------------------------------------------------------------------------------------------
+
+
+def test_student_t_quantiles():
+    """Closed-form t CDF inverted: the tabulated 97.5 % points for 1, 7 and 15 degrees of freedom."""
+    for dof, q in ((1, 12.7062), (7, 2.3646), (15, 2.1314)):
+        assert student_t_quantile(0.975, dof) == pytest.approx(q, abs=1e-4)
+
+
+@pytest.mark.parametrize("replicates", [8, 16])
+def test_replicate_intervals_cover_at_their_level(replicates):
+    """95 % intervals of 2000 Sobol' estimates with R replicates of ∫ cos³ (cosine) cover π/2 in
+    93-97 % of keys (binomial sd 0.5 %: false failure below 1e-4); with the normal quantile they
+    cover less (about 92 % at R = 8, 93.5 % at R = 16)."""
+    source = js.uniforms.Sobol(replicates=replicates)
+    keys = jax.random.split(jax.random.key(replicates), 2000)
+    est = jax.jit(jax.vmap(lambda k: js.estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), k,
+                                                 replicates * 64, uniforms=source)))(keys)
+    lo, hi = est.interval(0.95)
+    coverage = float(jnp.mean((lo <= np.pi / 2) & (np.pi / 2 <= hi)))
+    assert 0.93 <= coverage <= 0.97, coverage
+    normal = float(jnp.mean(jnp.abs(est.mean - np.pi / 2) <= 1.959964 * est.stderr))
+    assert normal < coverage
+
+
+def test_an_unreliable_eager_estimate_warns_and_a_jitted_one_does_not():
+    f, lobe = (lambda w: w[2]), js.PhongLobe(20.0)
+    with pytest.warns(js.UnreliableEstimateWarning, match="k-hat"):
+        js.estimate(f, lobe, _key(), N)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        est = jax.jit(lambda k: js.estimate(f, lobe, k, N))(_key())
+        js.estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), _key(), N)  # honest: silent
+    assert not bool(est.reliable)
+    assert "reliable=False" in repr(est) and "khat=" in repr(est)
+    assert set(est.diagnostics) == {"khat", "nonzero", "ess_fraction", "reliable"}
+
+
+def test_estimate_until_carries_the_same_verdict():
+    """`estimate_until` streams the same tail: the infinite-variance program is flagged there too,
+    and the honest one is not."""
+    bad = js.estimate_until(lambda w: w[2], js.PhongLobe(20.0), _key(), max_n=N, rtol=1e-9, chunk_size=4096)
+    good = js.estimate_until(lambda w: w[2] ** 3, js.CosineHemisphere(), _key(), max_n=N, rtol=1e-9,
+                             chunk_size=4096)
+    assert float(bad.khat) > 0.7 and not bool(bad.reliable)
+    assert bool(good.reliable) and float(good.khat) < 0.0
