@@ -46,7 +46,7 @@ from .diagnostics import MAX_TAIL, largest, pareto_khat, tail_bins, tail_size, v
 from .engine import _MAX_STEPS, _chunk_moments, _empty_moments, _lane_values, _merge, _Moments, stderr_floor
 from .integrand import integrand_layout
 from .plain import packed_values
-from .result import interval
+from .result import interval, interval_quantile
 
 __all__ = ["EstimateUntil", "estimate_until"]
 
@@ -148,6 +148,9 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
       f, sampler, key, mode, dtype: as in `estimate`.
       max_n: the most samples to use (a multiple of `chunk_size`).
       rtol, atol: relative and absolute tolerances on the standard error (at least one, >= 0).
+        With R > 1 replicates (Sobol') the test is t_{R-1} stderr / 1.96 <= tolerance (the spread
+        of R means is itself uncertain: Student's t with R - 1 degrees of freedom), so that the
+        95 % interval is as wide as with independent points at that tolerance.
       min_n: stop no earlier than this (default 8 chunks; a multiple of `chunk_size`).
       uniforms: "random" (default) or "sobol" (the test is made at power-of-two points per
         replicate); "stratified" needs the total count in advance, so it is refused.
@@ -201,6 +204,9 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
     out_shape = tuple(point.out_avals[0].shape)
     seed = seed_from_key(key)
     rtol_, atol_ = float(rtol or 0.0), float(atol or 0.0)
+    # With R replicates the stderr is the spread of R means: the test widens it by t_{R-1} / z, so
+    # that the 95 % Student-t interval is no wider than the normal one the tolerance means.
+    widening = interval_quantile(0.95, replicates) / interval_quantile(0.95, 1)
 
     def chunk_moments(steps):
         offset = offset_at(0, steps.astype(jnp.uint32), chunk, wide)
@@ -231,7 +237,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
         mean, stderr, _, _ = _statistics(moments, steps.astype(dtype) * float(chunk), replicates)
         # Sizes compared with the tolerance: |component|, the modulus for both parts of a complex leaf.
         tolerance = jnp.maximum(atol_, rtol_ * layout.magnitudes(mean))
-        stderr = layout.magnitudes(stderr)
+        stderr = layout.magnitudes(stderr) * widening
         met = jnp.all(stderr <= tolerance) & (steps >= min_steps) & at_net(steps)
         return moments, steps, met
 
