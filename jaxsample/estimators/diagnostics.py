@@ -13,7 +13,8 @@ numbers, kept in constant memory as the samples stream by, say when it is not:
   shape ξ is the tail index: |Y| has finite moments of order below 1/ξ. k-hat >= 0.5 means the
   variance is infinite, so the standard error means nothing; k-hat >= 0.7 means the mean itself
   converges too slowly to be trusted at any practical n (Vehtari et al. 2024, sec. 3). A bounded
-  |Y| gives k-hat < 0; a tail with no spread at all (the largest M + 1 values equal) gives -inf.
+  |Y| gives k-hat < 0; a tail with no spread (the largest M + 1 values equal to 0.1 %, as for
+  f/p constant up to rounding) gives -inf.
 - **The fraction of nonzero Y**: 0 means no sample reached where f is nonzero (the integral may be
   0, or the sampler may miss the integrand's support); a handful means the estimate rests on them.
 - **ess / n**, from the `ess` field (Kong 1992).
@@ -47,7 +48,8 @@ KHAT_VARIANCE = 0.5   # k-hat at or above: infinite variance, the stderr means n
 KHAT_MEAN = 0.7       # k-hat at or above: the mean itself is unreliable
 MAX_TAIL = 256        # the most tail values fitted (M); the M + 1 largest |Y| are used
 BINS = 8192           # the streamed tail state: the two largest |Y| of each of BINS bins
-MIN_TAIL = 5          # fewer exceedances than this: no fit (k-hat NaN)
+MIN_TAIL = 5          # fewer exceedances than this: no tail to fit
+FLAT_TAIL = 1e-3      # the M + 1 largest within this relative spread: no tail (k-hat -inf)
 ROUNDING_ULPS = 2.0   # the stderr floor, in ulps of mean |Y|
 _PRIOR_WEIGHT = 10.0  # PSIS's weakly informative prior on ξ: 10 pseudo-observations at 0.5
 _PRIOR_SHAPE = 0.5
@@ -182,9 +184,10 @@ def _fit(tail, m, grid):
     theta_hat = jnp.sum(jnp.where(jnp.isfinite(profile), weights * theta, 0.0), axis=0)
     xi_hat = shape_at(theta_hat)
     shrunk = (n_used * xi_hat + _PRIOR_WEIGHT * _PRIOR_SHAPE) / (n_used + _PRIOR_WEIGHT)
-    # Fewer than MIN_TAIL distinct exceedances, or a spread at float rounding: ties at the
-    # threshold, a bounded |Y| (the estimate's own rounding noise is not a tail).
-    spread = x_max > 16.0 * jnp.finfo(x.dtype).eps * flat[0]
+    # Fewer than MIN_TAIL distinct exceedances (ties at the threshold), or the largest values
+    # agreeing to `FLAT_TAIL`: f/p is constant up to the rounding of f and p (VonMisesFisher(10)
+    # against e^{10 cos θ} spreads by 1e-4), and a tail that narrow cannot dominate the mean.
+    spread = x_max > FLAT_TAIL * flat[0]
     khat = jnp.where((count >= MIN_TAIL) & spread, shrunk, -jnp.inf)
     khat = jnp.where(m >= MIN_TAIL, khat, jnp.nan)   # n too small to fit a tail
     return khat.reshape(tail.shape[1:])
