@@ -560,6 +560,10 @@ MUTATIONS = [
       "verdict(self.mean, self.stderr, -jnp.inf * self.khat, self.nonzero, self.n_used)",
       ("tests/estimators/test_diagnostics.py::test_estimate_until_carries_the_same_verdict",),
       "estimate_until's verdict ignores its tail"),
+    M("vmf-far-t-from-log1p", "jaxsample/samplers/vmf.py",
+      "jnp.where(far, 2.0 - direct, t)", "t",
+      ("tests/samplers/test_directional.py::test_vmf_far_hemisphere_direction_and_density_agree",),
+      "beyond the equator the VMF direction and its density disagree by 8e-4 (found by k-hat)"),
     # ---- boundary terms: gradients when a parameter moves an edge (issue 23) ----
     M("boundary-term-dropped", "jaxsample/estimators/boundary.py",
       "total = total + weight * speed.reshape(speed.shape + (1,) * (weight.ndim - 1))",

@@ -227,3 +227,17 @@ def test_phong_gradients_at_1e7_and_u_next_to_one(dtype):
                 np.testing.assert_allclose(float(d_t), expected_t, rtol=1e-6)
             else:
                 assert np.isfinite(float(d_t))
+
+
+def test_vmf_far_hemisphere_direction_and_density_agree():
+    """VonMisesFisher(10) beyond the equator (t = 1 - cos θ > 1): the direction is a unit vector and
+    the returned density is the density of that direction, so f/p for f = e^{10 cos θ} is constant
+    to float32 rounding (1e-5 relative; t from log1p(-u₀ s) there was off by 8e-4)."""
+    kappa, t = 10.0, np.linspace(1.05, 1.6, 64)
+    u0 = -np.expm1(-kappa * t) / -np.expm1(-2 * kappa)    # the uniforms that reach those t
+    u = jnp.asarray(np.stack([u0, np.full_like(u0, 0.3)], axis=-1), jnp.float32)
+    x, p = js.VonMisesFisher(kappa).warp_with_pdf(u)
+    assert np.all(np.asarray(x[:, 2]) < -0.04)
+    ratio = np.asarray(jnp.exp(kappa * x[:, 2]) / p)
+    np.testing.assert_allclose(ratio, 4 * np.pi * np.sinh(kappa) / kappa, rtol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(np.asarray(x, np.float64), axis=-1), 1.0, atol=1e-6)
