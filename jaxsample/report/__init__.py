@@ -3,8 +3,12 @@
 It answers, for each integrand with an exact reference: which sampling strategy gives the smallest
 error in a given time, and by how much. Every figure is measured in the run that writes it.
 
+`--tiny` is a smoke test of the report's code paths at the smallest sizes, whose numbers mean
+nothing: it says so at the top of the report and draws no verdicts (no winner, speed-up, slope,
+floor or target met).
+
 Sections (each computed by a module of this package, runnable alone as `python -m
-jaxsample.report.<module>` or `python benchmarks/<module>.py` in a checkout):
+jaxsample.report.<module>`; in a checkout also as `python benchmarks/<module>.py`):
   1. environment (device, dtype, JAX version, PRNG);
   2. samplers: normalization, a known integral ± stderr, time per million (`samplers_table.py`);
   3. convergence: which strategy reaches a target error first, and how much sooner (`verdicts.py`);
@@ -37,9 +41,13 @@ from pathlib import Path
 import jax
 import numpy as np
 
-# --tiny is a smoke test of every code path, not a study: a few samplers of each kind.
+# --tiny is a smoke test of the report's code paths, not a study: a few samplers of each kind.
 TINY_SAMPLERS = ("CosineHemisphere(malley)", "PhongLobe(1e7)", "UniformCone(1e-8 sr)", "UniformDisk(concentric)",
                  "Exponential(2)", "Discrete(1,2,3,4)", "Mixture(cosine, Phong 20)")
+# The sections --tiny leaves out (the slowest); each says so where it would be.
+TINY_SKIPPED = ("baselines", "the curse of dimensionality", "gradient estimators", "gradients with error bars",
+                "the scene")
+NO_VERDICTS = "no verdicts at smoke-test size"
 
 
 def _piece(name: str):
@@ -71,9 +79,10 @@ KIND_COLOURS = {"plain": "tab:gray", "importance": "tab:blue", "MIS": "tab:purpl
                 "QMC": "tab:green"}
 
 
-def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
+def _plots(rows: list[dict], out: Path, dims_rows: list[dict], tiny: bool = False) -> list[str]:
     """Log–log RMSE against n and against seconds per integrand (floors marked), and the time each
-    strategy takes to reach each target error, grouped by integrand and coloured by kind."""
+    strategy takes to reach each target error, grouped by integrand and coloured by kind. `tiny`:
+    the same plots, titled as a smoke test, with no floors marked."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -98,7 +107,7 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
                 label = r["strategy"]
             line, = ax_n.loglog(ns, rmse, "o-", ms=3, label=label)
             ax_t.loglog(seconds, rmse, "o-", ms=3, color=line.get_color(), label=r["strategy"])
-            if r["floor_n"] is not None:  # the floor: from its first point on, the RMSE stops falling
+            if r["floor_n"] is not None and not tiny:  # the floor: from its first point on, the RMSE stops falling
                 at = ns >= r["floor_n"]
                 for ax, x in ((ax_n, ns), (ax_t, seconds)):
                     ax.loglog(x[at], rmse[at], "s", ms=8, mfc="none", mec="red",
@@ -112,7 +121,8 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
             ax_t.axhline(target * abs(group[0]["exact"]), color="k", lw=0.6, ls=":")
             ax_t.annotate(f"{target:g} rel.", (0.01, target * abs(group[0]["exact"])),
                           xycoords=("axes fraction", "data"), fontsize=6, va="bottom")
-        ax_n.set(xlabel="samples n", ylabel="RMSE", title=f"{integrand}: RMSE against n (slope ± se)")
+        smoke = f"smoke test, {NO_VERDICTS}: " if tiny else ""
+        ax_n.set(xlabel="samples n", ylabel="RMSE", title=f"{smoke}{integrand}: RMSE against n (slope ± se)")
         ax_t.set(xlabel="seconds (measured ns/sample × n)", ylabel="RMSE", title="RMSE against time; target errors")
         ax_n.legend(fontsize=6)
         ax_t.legend(fontsize=6)
@@ -121,7 +131,7 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
         fig.savefig(path, dpi=110)
         plt.close(fig)
         written.append(path.name)
-    written.append(_time_to_target_plot(rows, out, plt, convergence, verdicts))
+    written.append(_time_to_target_plot(rows, out, plt, convergence, verdicts, tiny))
     if dims_rows:
         fig, ax = plt.subplots(figsize=(6, 4))
         budget = max(r["budget"] for r in dims_rows)
@@ -137,10 +147,11 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict]) -> list[str]:
     return written
 
 
-def _time_to_target_plot(rows, out: Path, plt, convergence, verdicts) -> str:
+def _time_to_target_plot(rows, out: Path, plt, convergence, verdicts, tiny: bool = False) -> str:
     """efficiency.png: one panel per target error; a bar per strategy (time to reach the target,
-    log scale, shorter wins, with its 1σ from the keys), grouped by integrand, coloured by kind;
-    "exact" and "not reached" are written where the bar would be."""
+    log scale, shorter wins, with its 1σ from the keys where it is known), grouped by integrand,
+    coloured by kind; "exact" and "not reached" are written where the bar would be. `tiny`: titled
+    as a smoke test that draws no verdicts."""
     from matplotlib.patches import Patch
 
     labels, positions, y = [], [], 0.0
@@ -167,7 +178,7 @@ def _time_to_target_plot(rows, out: Path, plt, convergence, verdicts) -> str:
                 ax.barh(pos, t.seconds, color=colour, alpha=0.25, hatch="//", edgecolor=colour)
                 ax.text(t.seconds, pos, f" not reached ({t.why})", va="center", fontsize=5)
             else:
-                err = t.seconds * t.rel_err if t.bound == "=" else None
+                err = t.seconds * t.rel_err if t.bound == "=" and np.isfinite(t.rel_err) else None
                 ax.barh(pos, t.seconds, color=colour, xerr=err, error_kw={"lw": 0.6})
                 if t.bound == "<=":
                     ax.text(t.seconds, pos, " ≤ (first point)", va="center", fontsize=5)
@@ -182,7 +193,10 @@ def _time_to_target_plot(rows, out: Path, plt, convergence, verdicts) -> str:
     first_ax.invert_yaxis()
     fig.legend(handles=[Patch(color=c, label=k) for k, c in KIND_COLOURS.items()], fontsize=7, loc="lower center",
                ncol=len(KIND_COLOURS))
-    fig.suptitle("Time to reach a target error, per integrand (shorter wins); colour = kind of strategy", fontsize=9)
+    title = "Time to reach a target error, per integrand (shorter wins); colour = kind of strategy"
+    if tiny:
+        title = f"Smoke test (--tiny), {NO_VERDICTS}: " + title.replace(" (shorter wins)", "")
+    fig.suptitle(title, fontsize=9)
     fig.tight_layout(rect=(0, 0.5 / max(4, 0.2 * y + 1), 1, 1))
     fig.savefig(out / "efficiency.png", dpi=110)
     plt.close(fig)
@@ -204,8 +218,90 @@ def _verdict_record(v: dict) -> dict:
     return record
 
 
-def _headline(rows: list[dict]) -> str:
-    return _piece("convergence").headline_markdown(rows)
+def smoke_test_headline() -> str:
+    """What --tiny is, in one paragraph: the top of its report and the first line it prints."""
+    ns, keys, _ = _piece("convergence").study_sizes(tiny=True)
+    return (f"A smoke test, not a study: {NO_VERDICTS}. `--tiny` runs the report's code paths once at the "
+            f"smallest sizes (the convergence study at n ≤ 2^{int(np.log2(ns[-1]))} over {keys} keys) and leaves out "
+            f"the slowest sections ({', '.join(TINY_SKIPPED)}); at that size its numbers mean nothing, so it "
+            "names no fastest strategy and no speed-up, slope, floor or target met. For the study run "
+            "`python -m jaxsample report --quick` (minutes) or `python -m jaxsample report`.")
+
+
+def opening(quick: bool = False, tiny: bool = False) -> list[str]:
+    """The report's first markdown lines: its title, in --tiny mode the smoke-test headline, and how
+    to reproduce the run."""
+    mode = "tiny" if tiny else ("quick" if quick else "full")
+    md = [f"# jaxsample report ({mode})\n"]
+    if tiny:
+        first, rest = smoke_test_headline().split(". ", 1)
+        md.append(f"**{first}.** {rest}\n")
+    md.append("Every number below was measured in this run. Reproduce with "
+              f"`python -m jaxsample report{' --quick' if quick else ''}{' --tiny' if tiny else ''}`.\n")
+    return md
+
+
+def verdict_section(rows: list[dict], tiny: bool = False) -> list[str]:
+    """"Which strategy wins": how the verdicts are drawn and their table (`convergence.headline_markdown`);
+    in --tiny mode a statement that there are none, and why."""
+    convergence, verdicts = _piece("convergence"), _piece("verdicts")
+    k, n_max = rows[0]["n_keys"], rows[0]["ns"][-1]
+    rel = 1.0 / np.sqrt(2.0 * k)
+    if tiny:
+        fitted = sum(n >= convergence.FIT_FROM_N for n in rows[0]["ns"])
+        sizes = (f": {fitted} of them from n = {convergence.FIT_FROM_N} on, fewer than the "
+                 f"{verdicts.MIN_SLOPE_POINTS} a slope needs" if fitted < verdicts.MIN_SLOPE_POINTS else "")
+        return ["## Which strategy wins\n",
+                f"Not answered here: {NO_VERDICTS}. Every RMSE is taken over k = {k} keys, so it carries about "
+                f"1/√(2k) = {100 * rel:.0f} %, and the sizes stop at n = {n_max}{sizes}. No strategy is named "
+                "fastest and no speed-up is given; the table below lists measurements only.\n"]
+    return ["## Which strategy wins\n",
+            "To reach a given error, which strategy takes the least time, and how much less? For each integrand "
+            "and target relative RMSE (RMSE / exact value), the time each strategy needs is read off its measured "
+            "RMSE-against-time curve (time = n × its measured ns/sample), interpolated on log–log axes between "
+            f"measured points, never extrapolated past the last one (n = {n_max}) nor past a floor: a target "
+            "not crossed by then is \"not reached\". A strategy whose RMSE is within "
+            f"{verdicts.EXACT_ULPS} float32 ulps of the exact value at every n is \"exact\" (zero "
+            "variance; detected from the curve). The baseline is plain uniform sampling (for e^{-t} cos t on "
+            "[0, ∞), which has no uniform density, Exponential(1)); QMC = scrambled Sobol' points.\n",
+            f"Uncertainty: every RMSE is taken over k = {k} independent keys, so it carries a relative error of "
+            f"about 1/√(2k) = {100 * rel:.0f} %. A time read off the curve carries that divided by |slope| (the "
+            "fitted slope of log RMSE against log n; an error off by δ moves the crossing by δ/|slope|); a "
+            f"strategy with fewer than {verdicts.MIN_SLOPE_POINTS} sizes to fit a slope over has none, and its "
+            "times an unknown error (\"± ?\"). A speed-up carries the two times' errors in quadrature; \"≥\" "
+            "marks a lower bound (the slower strategy did not reach the target, so its time is at least the "
+            "whole budget). Strategies within 2σ of the fastest are named as tied with it; where one of them "
+            "is only a bound or has an unknown error, as \"not told apart\" from it. Timing noise is not in "
+            "these errors: the strategies of one integrand are timed in interleaved rounds (median of 5).\n",
+            convergence.headline_markdown(rows)]
+
+
+def study_section(rows: list[dict], tiny: bool = False) -> list[str]:
+    """"Speed against error": how the curves are measured and their table; in --tiny mode without
+    what is read off them (slope, floor, time to each target)."""
+    convergence = _piece("convergence")
+    k, n_max = rows[0]["n_keys"], rows[0]["ns"][-1]
+    rel = 1.0 / np.sqrt(2.0 * k)
+    text = (f"RMSE and bias over {k} independent keys at n = {n_max}; bias z = bias / (spread/√keys ⊕ 4 ulps), "
+            "and the bias in float32 ulps of the exact value. Kind is read off the strategy's definition "
+            "(Sobol' points → QMC, jittered → stratified, two techniques or a mixture → MIS, a non-uniform "
+            "density → importance, else plain). Estimates at each n are prefix means of one stream per key "
+            "(Sobol': one scrambled sequence, whose power-of-two prefixes are nets; jittered points are drawn "
+            "anew per n), summed in float64: what is left at a floor is the float32 per-sample values' own "
+            "rounding, which averaging does not remove when it is systematic (the bias in ulps shows it). ")
+    if tiny:
+        text += (f"Slopes, floors and times to a target are verdicts, left out: {NO_VERDICTS}. ")
+    else:
+        text += ("**Floor**: the first n from which the RMSE stops falling (no later point lies more than "
+                 f"1/√k = {100 * np.sqrt(2.0) * rel:.0f} % below it in log). Slopes are least-squares fits of log "
+                 f"RMSE against log n over the points before the floor with n ≥ {convergence.FIT_FROM_N} (past "
+                 "the pre-asymptotic start of the nets), ± a standard error that is never below what the keys "
+                 f"allow; with fewer than {_piece('verdicts').MIN_SLOPE_POINTS} such points there is no slope "
+                 "(\"too few sizes\"). ")
+    text += ("MIS rows count one sample per technique as two evaluations. ns/sample measured on `js.estimate` "
+             "under jit (see jaxsample/report/convergence.py).\n")
+    return ["## Speed against error, per integrand and strategy\n", text,
+            convergence.markdown_table(rows, verdicts=not tiny)]
 
 
 def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Path:
@@ -213,12 +309,10 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     out.mkdir(parents=True, exist_ok=True)
     progress = lambda message: print(message, flush=True)  # noqa: E731
     started = time.perf_counter()
+    if tiny:
+        progress(smoke_test_headline())
     env = _environment()
-    mode = "tiny" if tiny else ("quick" if quick else "full")
-    md = [f"# jaxsample report ({mode})\n",
-          "Every number below was measured in this run. Reproduce with "
-          f"`python -m jaxsample report{' --quick' if quick else ''}{' --tiny' if tiny else ''}`.\n",
-          "## Environment\n", "| key | value |\n|---|---|"]
+    md = opening(quick, tiny) + ["## Environment\n", "| key | value |\n|---|---|"]
     md += [f"| {k} | {v} |" for k, v in env.items()]
     md.append("")
 
@@ -235,44 +329,15 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     rows = convergence.run_study(quick=quick, tiny=tiny, progress=progress)
     _write_csv(out / "convergence.csv", rows)
     verdict_rows = convergence.verdict_rows(rows)
-    _write_csv(out / "verdicts.csv", [_verdict_record(v) for v in verdict_rows])
-    k, n_max = rows[0]["n_keys"], rows[0]["ns"][-1]
-    rel = 1.0 / np.sqrt(2.0 * k)
-    md += ["## Which strategy wins\n",
-           "To reach a given error, which strategy takes the least time, and how much less? For each integrand "
-           "and target relative RMSE (RMSE / exact value), the time each strategy needs is read off its measured "
-           "RMSE-against-time curve (time = n × its measured ns/sample), interpolated on log–log axes between "
-           f"measured points, never extrapolated past the last one (n = {n_max}) nor past a floor: a target "
-           "not crossed by then is \"not reached\". A strategy whose RMSE is within "
-           f"{_piece('verdicts').EXACT_ULPS} float32 ulps of the exact value at every n is \"exact\" (zero "
-           "variance; detected from the curve). The baseline is plain uniform sampling (for e^{-t} cos t on "
-           "[0, ∞), which has no uniform density, Exponential(1)); QMC = scrambled Sobol' points.\n",
-           f"Uncertainty: every RMSE is taken over k = {k} independent keys, so it carries a relative error of "
-           f"about 1/√(2k) = {100 * rel:.0f} %. A time read off the curve carries that divided by |slope| (the "
-           "fitted slope of log RMSE against log n; an error off by δ moves the crossing by δ/|slope|), a "
-           "speed-up the two times' errors in quadrature; \"≥\" marks a lower bound (the slower strategy did "
-           "not reach the target, so its time is at least the whole budget), and strategies within 2σ of the "
-           "fastest are named as tied. Timing noise is not in these errors: the strategies of one integrand "
-           "are timed in interleaved rounds (median of 5).\n",
-           _headline(rows),
-           "## Speed against error, per integrand and strategy\n",
-           f"RMSE and bias over {k} independent keys at n = {n_max}; bias z = bias / (spread/√keys ⊕ 4 ulps), "
-           "and the bias in float32 ulps of the exact value. Kind is read off the strategy's definition "
-           "(Sobol' points → QMC, jittered → stratified, two techniques or a mixture → MIS, a non-uniform "
-           "density → importance, else plain). Estimates at each n are prefix means of one stream per key "
-           "(Sobol': one scrambled sequence, whose power-of-two prefixes are nets; jittered points are drawn "
-           "anew per n), summed in float64: what is left at a floor is the float32 per-sample values' own "
-           "rounding, which averaging does not remove when it is systematic (the bias in ulps shows it). "
-           "**Floor**: the first n from which the RMSE stops falling (no later point lies more than "
-           f"1/√k = {100 * np.sqrt(2.0) * rel:.0f} % below it in log). Slopes are least-squares fits of log RMSE "
-           f"against log n over the points before the floor with n ≥ {convergence.FIT_FROM_N} (past the "
-           "pre-asymptotic start of the nets), ± a standard error that is never below what the keys allow. "
-           "MIS rows count one sample per technique as two evaluations. ns/sample measured on `js.estimate` "
-           "under jit (see jaxsample/report/convergence.py).\n", convergence.markdown_table(rows)]
+    if tiny:  # the verdicts' code runs, as a smoke test; nothing of it is written
+        convergence.headline_markdown(rows)
+    else:
+        _write_csv(out / "verdicts.csv", [_verdict_record(v) for v in verdict_rows])
+    md += verdict_section(rows, tiny) + study_section(rows, tiny)
 
     baselines = _piece("baselines")
     if tiny:
-        md += ["## Baselines\n", "Skipped in --tiny mode (run `python benchmarks/baselines.py`).\n"]
+        md += ["## Baselines\n", "Skipped in --tiny mode (run `python -m jaxsample.report.baselines`).\n"]
     else:
         base = baselines.baseline_table(quick=quick, progress=progress)
         _write_csv(out / "baselines.csv", [base])
@@ -285,10 +350,13 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
            "Each row times a program users write (ns per sample, or per radiance evaluation for "
            "`shade`), with its ratio and target taken in this run from interleaved medians "
            f"(`jaxsample/report/paths.py`{'; --tiny times only the integrand forms' if tiny else ''}).\n",
-           paths.markdown_table(path_rows)]
+           paths.markdown_table(path_rows, verdicts=not tiny)]
 
     dims_rows: list[dict] = []
-    if not tiny:
+    if tiny:
+        md += ["## The curse of dimensionality\n",
+               "Skipped in --tiny mode (run `python -m jaxsample.report.dimensionality`).\n"]
+    else:
         dimensionality = _piece("dimensionality")
         dims_rows = dimensionality.dimensionality_table(quick=quick, progress=progress)
         _write_csv(out / "dimensionality.csv", dims_rows)
@@ -296,20 +364,22 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
                "used in parentheses); Monte Carlo entries are RMSE over independent keys.\n",
                dimensionality.markdown_table(dims_rows)]
 
-    try:
-        if tiny:
-            raise ImportError("skipped in --tiny mode")
-        gradients = _piece("bench_gradients")
-        progress("[gradients]")
-        grad_rows = gradients.gradient_table(quick=quick or tiny)
-        _write_csv(out / "gradients.csv", grad_rows)
-        md += ["## Gradient estimators\n", gradients.markdown_table(grad_rows)]
-    except (ImportError, AttributeError) as error:
-        md += ["## Gradient estimators\n", f"Not available in this checkout ({error}).\n"]
+    if tiny:
+        md += ["## Gradient estimators\n",
+               "Skipped in --tiny mode (run `python -m jaxsample.report.bench_gradients`).\n"]
+    else:
+        try:
+            gradients = _piece("bench_gradients")
+            progress("[gradients]")
+            grad_rows = gradients.gradient_table(quick=quick)
+            _write_csv(out / "gradients.csv", grad_rows)
+            md += ["## Gradient estimators\n", gradients.markdown_table(grad_rows)]
+        except (ImportError, AttributeError) as error:
+            md += ["## Gradient estimators\n", f"Not available in this checkout ({error}).\n"]
 
     if tiny:
         md += ["## Gradients with error bars; estimates to a requested accuracy\n",
-               "Skipped in --tiny mode (run `python benchmarks/gradient_error_bars.py`).\n"]
+               "Skipped in --tiny mode (run `python -m jaxsample.report.gradient_error_bars`).\n"]
     else:
         error_bars = _piece("gradient_error_bars")
         bar_rows = error_bars.gradient_table(quick=quick, progress=progress)
@@ -328,30 +398,32 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     _write_csv(out / "hard_cases.csv", hard_rows)
     md += ["## Hard cases (float32, u ∈ {0, ½, 1−2⁻²⁴}²)\n", hard.markdown_table(hard_rows)]
 
-    try:
-        if tiny:
-            raise ImportError("skipped in --tiny mode")
-        inverse = _piece("inverse_problem")
-        progress("[scene: inverse problem]")
-        result = inverse.run_inverse_problem(quick=quick or tiny, out_dir=str(out))
-        md += ["## Scene: recovering a Phong exponent and albedo, and the light's position, by gradient descent\n",
-               "```\n" + inverse.markdown_summary(result).strip() + "\n```\n"]
-        grid = _piece("shade_gradients")
-        progress("[scene: shade's gradients against the reference]")
-        z_rows = grid.z_table(n=4096, progress=progress, quick=quick)
-        cost_rows = grid.cost_table(n=1 << 14, progress=progress, strategies=("mis",) if quick else ("mis", "brdf"))
-        _write_csv(out / "shade_gradients.csv", z_rows)
-        _write_csv(out / "boundary_term_cost.csv", cost_rows)
-        md += ["## Scene: shade's gradients with the silhouettes' boundary term\n",
-               "Every parameter of the BRDF (log-exponent, albedo) and of the light (a sphere's centre, radius and "
-               "radiance; a triangle's vertices and radiance), by `scene.shade_grad` at 4096 evaluations, against "
-               "central differences of the float64 `reference_radiance`; then the term's cost (attached, 2^14 "
-               "evaluations x 12 configurations, medians of 3 runs).\n", grid.markdown(z_rows, cost_rows)]
-    except (ImportError, AttributeError) as error:
-        md += ["## Scene\n", f"Not available in this checkout ({error}).\n"]
+    if tiny:
+        md += ["## Scene\n", "Skipped in --tiny mode (run `python -m jaxsample.report.inverse_problem` and "
+               "`python -m jaxsample.report.shade_gradients`).\n"]
+    else:
+        try:
+            inverse = _piece("inverse_problem")
+            progress("[scene: inverse problem]")
+            result = inverse.run_inverse_problem(quick=quick, out_dir=str(out))
+            md += ["## Scene: recovering a Phong exponent and albedo, and the light's position, by gradient descent\n",
+                   "```\n" + inverse.markdown_summary(result).strip() + "\n```\n"]
+            grid = _piece("shade_gradients")
+            progress("[scene: shade's gradients against the reference]")
+            z_rows = grid.z_table(n=4096, progress=progress, quick=quick)
+            cost_rows = grid.cost_table(n=1 << 14, progress=progress, strategies=("mis",) if quick else ("mis", "brdf"))
+            _write_csv(out / "shade_gradients.csv", z_rows)
+            _write_csv(out / "boundary_term_cost.csv", cost_rows)
+            md += ["## Scene: shade's gradients with the silhouettes' boundary term\n",
+                   "Every parameter of the BRDF (log-exponent, albedo) and of the light (a sphere's centre, radius and "
+                   "radiance; a triangle's vertices and radiance), by `scene.shade_grad` at 4096 evaluations, against "
+                   "central differences of the float64 `reference_radiance`; then the term's cost (attached, 2^14 "
+                   "evaluations x 12 configurations, medians of 3 runs).\n", grid.markdown(z_rows, cost_rows)]
+        except (ImportError, AttributeError) as error:
+            md += ["## Scene\n", f"Not available in this checkout ({error}).\n"]
 
     try:
-        images = _plots(rows, out, dims_rows)
+        images = _plots(rows, out, dims_rows, tiny)
         md += ["## Plots\n"] + [f"![{name}]({name})" for name in images]
     except ImportError:
         hint = ("matplotlib is not installed, so there are no plots: `pip install matplotlib` (the package's "
@@ -361,7 +433,8 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
 
     md.append(f"\nTotal run time: {time.perf_counter() - started:.0f} s.\n")
     (out / "report.md").write_text("\n".join(md))
-    progress(f"wrote {out / 'report.md'} in {time.perf_counter() - started:.0f} s")
+    smoke = f" (a smoke test: {NO_VERDICTS})" if tiny else ""
+    progress(f"wrote {out / 'report.md'} in {time.perf_counter() - started:.0f} s{smoke}")
     return out / "report.md"
 
 
@@ -371,7 +444,8 @@ def main(argv=None) -> int:
     report = commands.add_parser("report", help="run the speed-against-error study")
     report.add_argument("--out", default="report", help="output folder (default: report/)")
     report.add_argument("--quick", action="store_true", help="smaller n and fewer keys (minutes on 2 cores)")
-    report.add_argument("--tiny", action="store_true", help="a smoke test: smallest sizes, few sections")
+    report.add_argument("--tiny", action="store_true",
+                        help="a smoke test of the code paths at the smallest sizes, few sections: no verdicts")
     args = parser.parse_args(argv)
     if args.command == "report":
         run(args.out, quick=args.quick, tiny=args.tiny)

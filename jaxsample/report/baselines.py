@@ -1,6 +1,6 @@
 """Baselines in one run: jaxsample against vectorized NumPy and against the uniform-generation floor.
 
-Run alone: `python benchmarks/baselines.py [--quick]`. Case: ∫ cos³ over the hemisphere with
+Run alone: `python -m jaxsample.report.baselines [--quick]`. Case: ∫ cos³ over the hemisphere with
 `CosineHemisphere`, default ("random", Philox4x32-10) uniforms. Ratios are of medians of repeats
 after a warm-up, taken in this one run (absolute speeds on a shared machine vary 2–3×).
 """

@@ -16,7 +16,7 @@ measured per-sample variance beside the exact one, the bias z-score (mean - exac
 using the exact variance where it is finite (the measured one otherwise), and the cost in ns per
 sample of `jit(grad(estimate or expectation))` (median of repeats, block_until_ready).
 
-Run: `python benchmarks/bench_gradients.py [--quick]`; `gradient_table(quick)` returns the rows.
+Run: `python -m jaxsample.report.bench_gradients [--quick]`; `gradient_table(quick)` returns the rows.
 """
 
 from __future__ import annotations

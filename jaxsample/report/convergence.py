@@ -1,6 +1,6 @@
 """Speed against error: RMSE, bias, variance, time, and the time each strategy takes to reach an error.
 
-Run alone: `python benchmarks/convergence.py [--quick]` prints the table; the report
+Run alone: `python -m jaxsample.report.convergence [--quick]` prints the table; the report
 (`python -m jaxsample report`) calls `run_study` and writes tables and plots from it.
 
 Method, for each (integrand, strategy):
@@ -19,7 +19,8 @@ Method, for each (integrand, strategy):
   at every n is "exact"; otherwise the floor (the first point from which the RMSE stops falling,
   within the 1/sqrt(2K) an RMSE over K keys carries) is detected, the slope of log RMSE against
   log n is fitted with its standard error over the points before it (n >= FIT_FROM_N, past the
-  pre-asymptotic start of the Sobol' nets), and the time to reach each target relative RMSE is
+  pre-asymptotic start of the Sobol' nets; at least `verdicts.MIN_SLOPE_POINTS` of them, else the
+  row has no slope and its times no error), and the time to reach each target relative RMSE is
   read off the curve of RMSE against time.
 - Bias z-score: mean error over the keys divided by its standard error (the spread of the K
   estimates / sqrt(K), combined with 4 float32 ulps of the exact value).
@@ -301,8 +302,9 @@ def run_study(quick: bool = True, progress=print, tiny: bool = False) -> list[di
 
 
 def verdict_rows(rows: list[dict]) -> list[dict]:
-    """One record per (integrand, target): the best strategy (with any tied within 2σ), its time,
-    its speed-up over the integrand's baseline and over the best non-QMC strategy (`verdicts.verdict`)."""
+    """One record per (integrand, target): the best strategy (with any tied within 2σ or not told
+    apart from it), its time, its speed-up over the integrand's baseline and over the best non-QMC
+    strategy (`verdicts.verdict`), and every strategy's time ("times")."""
     out = []
     for integrand in dict.fromkeys(r["integrand"] for r in rows):
         group = [r for r in rows if r["integrand"] == integrand]
@@ -312,13 +314,19 @@ def verdict_rows(rows: list[dict]) -> list[dict]:
             times = {r["strategy"]: row_times(r)[target] for r in group}
             v = V.verdict(times, kinds, baseline)
             out.append({"integrand": integrand, "target": float(target), "baseline": baseline,
-                        "n_max": group[0]["ns"][-1], "n_keys": group[0]["n_keys"], **v})
+                        "n_max": group[0]["ns"][-1], "n_keys": group[0]["n_keys"], "times": times, **v})
     return out
 
 
-def _who(names: list[str], kinds: dict[str, str]) -> str:
+def _who(names: list[str], kinds: dict[str, str], times: dict[str, V.Time]) -> str:
+    """The best name and its kind, then those tied with it: "within 2σ" when every tie is a measured
+    ratio with its error, "not told apart" when one is a bound or has no error (no fitted slope)."""
     first = f"{names[0]} ({kinds[names[0]]})"
-    return first if len(names) == 1 else f"{first}; tied within 2σ: {', '.join(names[1:])}"
+    if len(names) == 1:
+        return first
+    ratios = [V.speedup(times[name], times[names[0]]) for name in names[1:]]
+    measured = all(r.bound == "=" and math.isfinite(r.rel_err) for r in ratios)
+    return f"{first}; {'tied within 2σ' if measured else 'not told apart'}: {', '.join(names[1:])}"
 
 
 def headline_markdown(rows: list[dict]) -> str:
@@ -342,7 +350,7 @@ def headline_markdown(rows: list[dict]) -> str:
         if time.bound == "exact":
             who, its_time, over_base = "exact: " + ", ".join(v["best"]), "exact at every n", "— (exact)"
         else:
-            who, its_time = _who(v["best"], k), V.format_time(time)
+            who, its_time = _who(v["best"], k, v["times"]), V.format_time(time)
             over_base = f"{V.format_ratio(v['over_baseline'])} (over {v['baseline']})"
         if time.bound != "exact" and k[v["best"][0]] != V.QMC:
             non_qmc, over_non_qmc = "the fastest itself", "1×"
@@ -353,7 +361,7 @@ def headline_markdown(rows: list[dict]) -> str:
             if nq_time.bound == "exact":
                 non_qmc = "exact: " + ", ".join(v["best_non_qmc"])
             else:
-                non_qmc = f"{_who(v['best_non_qmc'], k)} ({V.format_time(nq_time)})"
+                non_qmc = f"{_who(v['best_non_qmc'], k, v['times'])} ({V.format_time(nq_time)})"
             exact_either = "exact" in (time.bound, nq_time.bound)
             over_non_qmc = "— (exact)" if exact_either else V.format_ratio(v["over_non_qmc"])
         out.append(f"| {label} | {v['target']:g} | {who} | {its_time} | {over_base} | {non_qmc} | {over_non_qmc} |")
@@ -365,24 +373,39 @@ def _power_of_two(n: float) -> str:
     return f"2^{k:.0f}" if k == int(k) else f"{n:g}"
 
 
-def markdown_table(rows: list[dict]) -> str:
-    targets = list(rows[0]["times"])
+def slope_cell(row: dict) -> str:
+    """The slope column of a row: slope ± se (the n it was fitted over), or why there is none."""
+    if row["zero_variance"]:
+        return "— (exact)"
+    if row["slope_points"] < V.MIN_SLOPE_POINTS:
+        return f"— (too few sizes: {row['slope_points']} < {V.MIN_SLOPE_POINTS})"
+    if not math.isfinite(row["slope"]):
+        return "—"
+    lo, hi = row["slope_n_range"]
+    return f"{row['slope']:.2f} ± {row['slope_stderr']:.2f} ({_power_of_two(lo)}–{_power_of_two(hi)})"
+
+
+def markdown_table(rows: list[dict], verdicts: bool = True) -> str:
+    """One line per row: the measurements, then (with `verdicts`) what `verdicts` reads off the
+    curve: slope, floor and the time to each target."""
+    targets = list(rows[0]["times"]) if verdicts else []
     head = ("| integrand | strategy | kind | RMSE @ n_max | bias (z; float32 ulps) | per-sample var | ns/sample | "
-            "RMSE slope ± se (fitted over n) | floor from n | "
-            + " | ".join(f"time to {t}" for t in targets) + " |\n|" + "---|" * (9 + len(targets)) + "\n")
+            + ("RMSE slope ± se (fitted over n) | floor from n | " if verdicts else "")
+            + "".join(f"time to {t} | " for t in targets)).rstrip(" ")
+    head += "\n|" + "---|" * (7 + (2 + len(targets) if verdicts else 0)) + "\n"
     lines = []
     for r in rows:
-        if r["zero_variance"]:
-            slope, floor = "— (exact)", "exact"
-        else:
-            lo, hi = r["slope_n_range"]
-            slope = ("—" if not math.isfinite(r["slope"]) else
-                     f"{r['slope']:.2f} ± {r['slope_stderr']:.2f} ({_power_of_two(lo)}–{_power_of_two(hi)})")
-            floor = "—" if r["floor_n"] is None else f"**{_power_of_two(r['floor_n'])}**"
-        times = " | ".join(V.format_time(t) for t in row_times(r).values())
-        lines.append(f"| {r['integrand']} | {r['strategy']} | {r['kind']} | {r['rmse_at_max']:.3g} | "
-                     f"{r['bias_at_max']:.2g} ({r['bias_z']:+.1f}; {r['bias_ulps']:+.2g}) | "
-                     f"{r['per_sample_variance']:.3g} | {r['ns_per_sample']:.2f} | {slope} | {floor} | {times} |")
+        line = (f"| {r['integrand']} | {r['strategy']} | {r['kind']} | {r['rmse_at_max']:.3g} | "
+                f"{r['bias_at_max']:.2g} ({r['bias_z']:+.1f}; {r['bias_ulps']:+.2g}) | "
+                f"{r['per_sample_variance']:.3g} | {r['ns_per_sample']:.2f} |")
+        if verdicts:
+            if r["zero_variance"]:
+                floor = "exact"
+            else:
+                floor = "—" if r["floor_n"] is None else f"**{_power_of_two(r['floor_n'])}**"
+            times = " | ".join(V.format_time(t) for t in row_times(r).values())
+            line += f" {slope_cell(r)} | {floor} | {times} |"
+        lines.append(line)
     return head + "\n".join(lines) + "\n"
 
 

@@ -1,6 +1,6 @@
 """The curse of dimensionality: error against evaluations for d = 1..6, quadrature beside MC.
 
-Run alone: `python benchmarks/dimensionality.py [--quick]`. The integrand is ∏ (π/2) sin(π x_i)
+Run alone: `python -m jaxsample.report.dimensionality [--quick]`. The integrand is ∏ (π/2) sin(π x_i)
 on [0, 1]^d (integral 1). Tensor-product rules (trapezoid, Simpson, Gauss–Legendre) use the
 largest m with m^d ≤ budget; Monte Carlo ("random") and Owen-scrambled Sobol' use exactly the
 budget, their error being the RMSE over independent keys (scrambles).

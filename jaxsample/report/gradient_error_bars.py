@@ -1,6 +1,6 @@
 """Gradients with error bars and estimates to a requested accuracy, as two report tables.
 
-Run alone: `python benchmarks/gradient_error_bars.py [--quick]` (or `python -m jaxsample.report.gradient_error_bars`).
+Run alone: `python -m jaxsample.report.gradient_error_bars [--quick]`.
 
 1. d/dn E_{Phong(n)}[cos^k θ] = k/(n+k+1)² by `jaxsample.expectation_grad` with each estimator
    ("pathwise", "score", "measure_valued"): the gradient ± its reported stderr beside the exact

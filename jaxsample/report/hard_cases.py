@@ -1,6 +1,6 @@
 """Hard cases: sampler × extreme parameter -> non-finite values and gradients, float32 error.
 
-Run alone: `python benchmarks/hard_cases.py`. For each case the warp, its density and the
+Run alone: `python -m jaxsample.report.hard_cases`. For each case the warp, its density and the
 gradients (reverse mode, w.r.t. the parameter and u) are evaluated at u in {0, 0.5, 1 - 2^-24}² in
 float32; the worst relative error of the density and the worst absolute error of the sample are
 taken (absolute, or relative for values above 1) against the same computation in float64 from the same (float32) inputs.

@@ -1,7 +1,7 @@
 """The inverse problem: recover a Phong surface's exponent and albedo, and the light's position,
 from observed radiance.
 
-Run alone:  python benchmarks/inverse_problem.py [--quick] [--out DIR]
+Run alone:  python -m jaxsample.report.inverse_problem [--quick] [--out DIR]
 From the report:  run_inverse_problem(quick, out_dir) -> dict
 
 Setup: a shading point at the origin with normal +z under one spherical light at a known distance

@@ -25,12 +25,14 @@ def median_time(fn, *args, repeats=5):
 
 
 def numpy_estimate(n, seed=0, chunk=1 << 20, all_components=False, with_stderr=False):
-    """Straightforward vectorized NumPy float32: concentric map, Malley lift, f/p, chunked sum
-    (and, with_stderr, the sum of squares for the standard error)."""
+    """Straightforward vectorized NumPy float32: concentric map, Malley lift, f/p, summed in chunks
+    of `chunk` samples (the last one shorter when n is not a multiple), and, with_stderr, the sum of
+    squares for the standard error."""
     rng = np.random.default_rng(seed)
     total = squares = 0.0
-    for _ in range(n // chunk):
-        u = rng.random((chunk, 2), dtype=np.float32)
+    for start in range(0, n, chunk):
+        size = min(chunk, n - start)
+        u = rng.random((size, 2), dtype=np.float32)
         a, b = 2 * u[:, 0] - 1, 2 * u[:, 1] - 1
         a_wins = np.abs(a) > np.abs(b)
         r = np.where(a_wins, a, b)

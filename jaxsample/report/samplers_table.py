@@ -1,6 +1,6 @@
 """Per sampler: normalization, a Monte Carlo estimate of a known integral, and time per million.
 
-Run alone: `python benchmarks/samplers_table.py`. Normalization is ∫ pdf dμ by deterministic
+Run alone: `python -m jaxsample.report.samplers_table`. Normalization is ∫ pdf dμ by deterministic
 float64 quadrature (`jaxsample.testing.normalization`); the estimate is `jaxsample.estimate` with
 n = 2^20 default ("random") uniforms; time per million samples is `sample_with_pdf` under jit at
 n = 2^20, median of 5 after a warm-up.

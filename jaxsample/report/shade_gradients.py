@@ -1,5 +1,6 @@
 """`shade`'s gradients against finite differences of the float64 reference, per strategy and mode,
-and what the silhouettes' boundary term costs (issue 23). Shared by the tests and the report.
+and what the silhouettes' boundary term costs. Shared by the tests and the report; run alone:
+`python -m jaxsample.report.shade_gradients [--quick] [--out DIR]`.
 
 The configurations: grazing views, lights at the horizon, a shading point close to the light,
 exponents from 1 to 1000, tilted normals, small and large lights, each under a sphere light and a

@@ -23,6 +23,7 @@ EXACT_ULPS = 4                # "exact": RMSE within this many float32 ulps of t
 FLOOR_Z = 1.0                 # a fall smaller than this many standard deviations is no fall
 FLOOR_CONFIRM = 2             # ... when it holds for this many later points
 TIE_Z = 2.0                   # a runner-up within this many standard deviations of the best is a tie
+MIN_SLOPE_POINTS = 3          # a slope is fitted to at least this many sizes; through fewer there is none
 QMC = "QMC"
 KINDS = ("plain", "importance", "MIS", "stratified", QMC)
 
@@ -96,21 +97,22 @@ def fit_slope(ns: Sequence[float], rmse: Sequence[float], n_keys: int, stop: int
     """Least-squares slope of log RMSE against log n over the points with n >= n_min and index < stop.
 
     Its standard error is sigma / sqrt(Σ (x - x̄)²), with sigma the larger of the residual scatter
-    (when there are 3 or more points) and the 1/sqrt(2k) every log RMSE carries: the fit's error is
-    never claimed smaller than the keys allow. NaN with fewer than two points.
+    and the 1/sqrt(2k) every log RMSE carries: the fit's error is never claimed smaller than the keys
+    allow. NaN (value, stderr and n range; `points` says how many there were) with fewer than
+    MIN_SLOPE_POINTS points: a line through two points fits them exactly, leaving no residual to
+    tell a rate from the keys' noise, so the report draws no slope, and no verdict, from them.
     """
     ns, rmse = _curve(ns, rmse)
     stop = len(ns) if stop is None else stop
     use = (np.arange(len(ns)) < stop) & (ns >= n_min) & (rmse > 0)
     x, y = np.log(ns[use]), np.log(rmse[use])
-    if x.size < 2:
+    if x.size < MIN_SLOPE_POINTS:
         return Slope(math.nan, math.nan, int(x.size), math.nan, math.nan)
     sxx = float(np.sum((x - x.mean()) ** 2))
     slope = float(np.sum((x - x.mean()) * (y - y.mean())) / sxx)
+    residual = y - (y.mean() + slope * (x - x.mean()))
     sigma = rmse_relative_error(n_keys)
-    if x.size >= 3:
-        residual = y - (y.mean() + slope * (x - x.mean()))
-        sigma = max(sigma, math.sqrt(float(np.sum(residual**2)) / (x.size - 2)))
+    sigma = max(sigma, math.sqrt(float(np.sum(residual**2)) / (x.size - 2)))
     return Slope(slope, sigma / math.sqrt(sxx), int(x.size), float(ns[use][0]), float(ns[use][-1]))
 
 
@@ -119,7 +121,7 @@ class Time:
     """Seconds to reach a target error. `bound`: "=" measured (interpolated), "<=" reached already at
     the first point (an upper bound), ">" not reached (seconds is the whole budget, a lower bound),
     "exact" zero variance (seconds is the cost of the first point). `rel_err`: relative standard
-    deviation of an "=" time; `why`: for ">", "budget" or "floor"."""
+    deviation of an "=" time, NaN when unknown (no fitted slope); `why`: for ">", "budget" or "floor"."""
     seconds: float
     bound: str
     rel_err: float = math.nan
@@ -138,8 +140,10 @@ def time_to_target(seconds: Sequence[float], rel_rmse: Sequence[float], target: 
     interpolated linearly in (log seconds, log error) between the two measured points around it;
     never extrapolated past `last` ("not reached", a lower bound of the whole budget) nor before
     the first point (reached there: an upper bound). The interpolated time's relative error is
-    the error's 1/sqrt(2k) divided by |slope| (the fitted d log RMSE / d log n; the local one
-    between the two points where no fit exists): an error off by δ moves the crossing by δ/|slope|.
+    the error's 1/sqrt(2k) divided by |slope| (the fitted d log RMSE / d log n, `fit_slope`): an
+    error off by δ moves the crossing by δ/|slope|. Without a fitted, falling slope (NaN: too few
+    sizes to fit one) the error is NaN, unknown: the rate between the two points around the
+    crossing is not used in its place.
     """
     t, e = _curve(seconds, rel_rmse)
     if not target > 0:
@@ -154,8 +158,7 @@ def time_to_target(seconds: Sequence[float], rel_rmse: Sequence[float], target: 
             log_e0, log_e1 = math.log(e[j - 1]), math.log(max(e[j], np.finfo(float).tiny))
             fraction = (math.log(target) - log_e0) / (log_e1 - log_e0)
             log_t = math.log(t[j - 1]) + fraction * (math.log(t[j]) - math.log(t[j - 1]))
-            local = (log_e1 - log_e0) / (math.log(t[j]) - math.log(t[j - 1]))
-            rate = slope if math.isfinite(slope) and slope < 0 else local
+            rate = slope if math.isfinite(slope) and slope < 0 else math.nan
             return Time(math.exp(log_t), "=", rmse_relative_error(n_keys) / abs(rate))
     return Time(float(t[-1]), ">", why="floor" if end < len(t) - 1 else "budget")
 
@@ -169,9 +172,10 @@ class Ratio:
 
 
 def speedup(slow: Time, fast: Time) -> Ratio:
-    """slow.seconds / fast.seconds. The relative errors of two independent times add in quadrature.
-    A time that is a bound makes the ratio one: "not reached" by the slower strategy, or reached at
-    the first point by the faster one, gives a lower bound; the reverse an upper bound."""
+    """slow.seconds / fast.seconds. The relative errors of two independent times add in quadrature
+    (NaN, unknown, when either is). A time that is a bound makes the ratio one: "not reached" by the
+    slower strategy, or reached at the first point by the faster one, gives a lower bound; the
+    reverse an upper bound."""
     if fast.bound == "exact" or slow.bound == "exact" or not fast.reached:
         return Ratio(math.nan, math.nan, "?")
     value = slow.seconds / fast.seconds
@@ -191,7 +195,8 @@ def _rank_key(time: Time) -> tuple:
 
 def best(times: dict[str, Time]) -> list[str]:
     """The names that reach the target first (several when they are exact, or tied within TIE_Z
-    standard deviations of the best time); [] when none reaches it. The first name is the best."""
+    standard deviations of the best time, or not told apart from it because the error of their
+    ratio is unknown); [] when none reaches it. The first name is the best."""
     reached = {name: t for name, t in times.items() if t.reached}
     if not reached:
         return []
@@ -203,8 +208,11 @@ def best(times: dict[str, Time]) -> list[str]:
     tied = [ranked[0]]
     for name in ranked[1:]:
         ratio = speedup(reached[name], top)
-        # "<=" or "?": the runner-up's time is only an upper bound, so it may be the faster one.
+        # "<=" or "?": the runner-up's time is only an upper bound, so it may be the faster one; an
+        # unknown error (no fitted slope) cannot separate the two either.
         if ratio.bound in ("<=", "?") or (ratio.bound == "=" and math.log(ratio.value) < TIE_Z * ratio.rel_err):
+            tied.append(name)
+        elif ratio.bound == "=" and math.isnan(ratio.rel_err):
             tied.append(name)
     return tied
 
@@ -240,6 +248,8 @@ def format_time(time: Time) -> str:
         return "not reached (floor)" if time.why == "floor" else f"not reached in {format_seconds(time.seconds)}"
     if time.bound == "<=":
         return f"≤ {format_seconds(time.seconds)}"
+    if math.isnan(time.rel_err):
+        return f"{format_seconds(time.seconds)} ± ? (no fitted slope)"
     return f"{format_seconds(time.seconds)} ± {100 * time.rel_err:.0f} %"
 
 
@@ -251,4 +261,6 @@ def format_ratio(ratio: Ratio) -> str:
         return "≥ " + text
     if ratio.bound == "<=":
         return "≤ " + text
+    if math.isnan(ratio.rel_err):
+        return f"{text} ± ?"
     return f"{text} ± {100 * ratio.rel_err:.0f} %"

@@ -117,6 +117,26 @@ def test_slope_is_fitted_before_the_floor_with_a_standard_error_the_keys_allow()
     assert math.isnan(V.fit_slope(NS, sqrt_curve(), K, n_min=NS[-1]).value)  # one point: no slope
 
 
+def test_a_slope_needs_three_sizes_and_a_time_without_one_has_no_error():
+    two = V.fit_slope(NS[:2], sqrt_curve()[:2], K)
+    assert math.isnan(two.value) and math.isnan(two.stderr) and two.points == 2  # a line through 2 points
+    three = V.fit_slope(NS[:3], sqrt_curve()[:3], K)
+    assert (three.value, three.points) == (pytest.approx(-0.5, abs=1e-12), 3)
+    # With no fitted slope a time is still read off the curve, but its error is unknown: the rate
+    # between the two points around the crossing is not taken for one.
+    t = V.time_to_target(NS * TAU, sqrt_curve(), 1e-2, slope=math.nan, n_keys=K)
+    assert t.bound == "=" and t.seconds == pytest.approx(200.0**2 * TAU) and math.isnan(t.rel_err)
+    assert V.format_time(t).endswith("± ? (no fitted slope)")
+
+
+def test_an_unknown_error_names_no_single_winner():
+    times = {"a": V.Time(1.0, "=", math.nan), "b": V.Time(3.0, "=", 0.1), "c": V.Time(2.0, "=", 0.1)}
+    assert V.best(times) == ["a", "c", "b"]  # 3× apart, but with no error on a's time: not told apart
+    ratio = V.speedup(times["b"], times["a"])
+    assert (ratio.bound, math.isnan(ratio.rel_err), V.format_ratio(ratio)) == ("=", True, "3× ± ?")
+    assert V.best({"b": times["b"], "c": times["c"]}) == ["c"]  # log 1.5 = 0.41 > 2 × 0.14: c alone
+
+
 def test_exact_is_detected_from_the_curve_at_every_n():
     exact = math.pi
     ulp = float(np.spacing(np.float32(exact)))
@@ -174,6 +194,26 @@ def test_add_verdicts_reads_exact_floor_slope_and_times_off_a_row():
     assert floored["times"]["0.0001"]["why"] == "floor"
     exact = C.add_verdicts(synthetic_row("cosine", "importance", np.zeros(9)), TAU)
     assert exact["zero_variance"] and {t["bound"] for t in exact["times"].values()} == {"exact"}
+
+
+TINY_NS = np.array(C.study_sizes(tiny=True)[0], float)  # 4 ... 2^10: two sizes from FIT_FROM_N = 256 on
+
+
+def test_a_study_with_two_sizes_to_fit_draws_no_slope_and_no_verdict():
+    assert np.sum(TINY_NS >= C.FIT_FROM_N) == 2
+    rows = [C.add_verdicts(synthetic_row("uniform", "plain", 0.05 / np.sqrt(TINY_NS), baseline=True, ns=TINY_NS), TAU),
+            C.add_verdicts(synthetic_row("cosine", "importance", 0.03 / np.sqrt(TINY_NS), ns=TINY_NS), TAU)]
+    for row in rows:
+        assert math.isnan(row["slope"]) and row["slope_points"] == 2
+        assert C.slope_cell(row) == "— (too few sizes: 2 < 3)"
+        measured = [t for t in row["times"].values() if t["bound"] == "="]
+        assert measured and all(math.isnan(t["rel_err"]) for t in measured)
+    assert "too few sizes" in C.markdown_table(rows)
+    # 0.01 is crossed by both (n = 9 and 25), with no error on either time: no single winner
+    first = C.verdict_rows(rows)[0]
+    assert first["target"] == 0.01 and first["best"] == ["cosine", "uniform"]
+    headline = C.headline_markdown(rows)
+    assert "not told apart: uniform" in headline and "± ?" in headline and "tied within 2σ" not in headline
 
 
 def test_headline_table_from_synthetic_rows():
