@@ -120,3 +120,33 @@ def check_choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) ->
 def default_float_dtype():
     """float64 when `jax_enable_x64` is on, else float32."""
     return jnp.zeros(()).dtype
+
+
+def resolve_float_dtype(owner: str, dtype: Any) -> np.dtype:
+    """The float dtype an estimator or sampler computes in: `dtype`, or the default
+    (`default_float_dtype`) for None and for Python's `float` (JAX's meaning of it).
+
+    Raises `ValueError` naming `owner`'s parameter 'dtype' unless it is float32, or float64 with
+    `jax_enable_x64` on: without it JAX truncates float64 to float32 (with a warning per array), so
+    a float64 request would silently compute in float32.
+    """
+    if dtype is None or dtype is float:
+        return default_float_dtype()
+    try:
+        resolved = jnp.dtype(dtype)
+    except TypeError:
+        resolved = None
+    if resolved not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ValueError(f"{owner}: parameter 'dtype' must be float32 or float64 (float64 with jax_enable_x64); "
+                         f"got {dtype!r}")
+    check_float64_enabled(owner, resolved)
+    return resolved
+
+
+def check_float64_enabled(owner: str, dtype: Any) -> None:
+    """Raise `ValueError` naming `owner`'s parameter 'dtype' if it is float64 and `jax_enable_x64`
+    is off (JAX would truncate every array to float32, with a warning per array)."""
+    if jnp.dtype(dtype) == np.float64 and default_float_dtype() != np.float64:
+        raise ValueError(f"{owner}: parameter 'dtype' is float64, which needs jax_enable_x64: call "
+                         "jax.config.update(\"jax_enable_x64\", True) at startup (without it JAX "
+                         "computes in float32), or pass dtype=jnp.float32")

@@ -19,6 +19,7 @@ import numpy as np
 from jax.scipy.special import gammaincc
 
 from .._core.pytree import to_float64
+from ..samplers.base import check_sampler
 from . import domains
 
 __all__ = ["Chi2Result", "chi2_test", "normalization", "inverse_error", "jacobian_error", "pdf_float64", "to_float64"]
@@ -101,6 +102,7 @@ def chi2_test(sampler, key, n_samples: int = 1_000_000, n_cells: int = 128, sign
     `significance` is the false-failure probability of the whole family of `n_tests` tests; each
     test uses the Šidák level 1 - (1 - significance)^(1/n_tests).
     """
+    check_sampler("chi2_test", "sampler", sampler)
     # Pilot and tested samples are disjoint index ranges of one draw: `sample` is counter-based
     # (sample i depends only on the key and i), so they are independent, and one compiled program
     # draws both.

@@ -40,6 +40,8 @@ from typing import Any, Callable
 import jax
 import jax.numpy as jnp
 
+from .._core.params import check_float64_enabled
+
 __all__ = ["IntegrandLayout", "integrand_layout", "layout_of", "require_real", "require_real_scalar",
            "STATISTICS"]
 
@@ -161,9 +163,20 @@ def layout_of(tree, owner: str, lead: int = 0) -> IntegrandLayout:
 
 
 def integrand_layout(f: Callable, sampler, dtype, owner: str) -> IntegrandLayout:
-    """The layout of f's value at one sample of `sampler` (traced abstractly: nothing runs)."""
+    """The layout of f's value at one sample of `sampler` (traced abstractly: nothing runs).
+
+    Checks what every estimator averaging f needs before anything runs: a float64 `dtype` has
+    jax_enable_x64 on (`check_float64_enabled`; without it JAX would compute in float32), and f
+    returns at least one number per sample (an empty array has no mean to estimate).
+    """
+    check_float64_enabled(owner, dtype)
     u = jax.ShapeDtypeStruct((sampler.uniform_dims,), dtype)
-    return layout_of(jax.eval_shape(lambda u: f(sampler.warp(u)), u), owner)
+    value = jax.eval_shape(lambda u: f(sampler.warp(u)), u)
+    layout = layout_of(value, owner)
+    if layout.width == 0:
+        raise ValueError(f"{owner}: the integrand must return at least one number per sample; it returns "
+                         f"{_describe(value)}")
+    return layout
 
 
 def require_real(layout: IntegrandLayout, owner: str, name: str, why: str) -> None:

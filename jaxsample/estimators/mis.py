@@ -13,7 +13,7 @@ import numpy as np
 from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from .._core.numerics import safe_div, safe_sqrt
-from .._core.params import check_choice, default_float_dtype
+from .._core.params import check_choice, resolve_float_dtype
 from ..samplers.base import check_unbatched, checked
 from ..uniforms import as_key
 from .engine import run_stream
@@ -78,6 +78,12 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     check_choice("estimate_mis", "heuristic", heuristic, ("balance", "power"))
     check_mode("estimate_mis", mode)
     samplers = list(samplers)
+    if isinstance(counts, (str, bytes)) or not hasattr(counts, "__iter__") or np.ndim(counts) == 0:
+        split = ""
+        if isinstance(counts, (int, np.integer)) and samplers:
+            split = f"; for {counts} in all, e.g. {[int(counts) // len(samplers)] * len(samplers)}"
+        raise ValueError(f"estimate_mis: parameter 'counts' must be a sequence of one count per sampler "
+                         f"({len(samplers)} here{split}); got {type(counts).__name__} {counts!r}")
     sizes = [check_count("estimate_mis", "counts", c, minimum=2) for c in counts]
     if len(samplers) != len(sizes) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
@@ -89,7 +95,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     exponent = 1 if heuristic == "balance" else beta
     if isinstance(exponent, (int, float, np.integer, np.floating)) and float(exponent).is_integer():
         exponent = int(exponent)  # q ** 2 is a multiplication; q ** 2.0 would be lax.pow (exp, log)
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("estimate_mis", dtype)
     keys = jax.random.split(as_key(key, "estimate_mis"), len(samplers))
     layout = integrand_layout(f, samplers[0], dtype, "estimate_mis")
     parts = []

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.entry import array_leaves
-from .._core.params import default_float_dtype
+from .._core.params import resolve_float_dtype
 from .._core.pytree import Pytree, tree_fields
 from .._core.numerics import safe_log
 
@@ -105,7 +105,7 @@ class Sampler(Pytree):
         return x, self.pdf(x)
 
     def inverse(self, x: jax.Array) -> jax.Array:
-        raise NotImplementedError(f"{type(self).__name__} has no inverse: its warp is not a bijection")
+        raise NotImplementedError(_no_inverse(type(self)))
 
     def prob(self, x: jax.Array) -> jax.Array:
         """The density at `x` (the name TFP, distrax and NumPyro use): the same function as `pdf`."""
@@ -134,17 +134,54 @@ class Sampler(Pytree):
         CPU, strictly inside (0, 1)): batch members draw independent points. One distribution
         is computed in one compiled loop (see `_draw`).
         """
-        return draw(self, _one_key(key, seed, "sample"), _one_shape(sample_shape, shape), dtype, "warp")
+        return draw(self, *key_and_shape(key, sample_shape, seed, shape, "sample"), dtype, "warp")
 
     def sample_with_pdf(self, key=None, sample_shape=(), dtype=None, *, seed=None, shape=None):
         """(samples, their densities); the density is the one `pdf` states, computed alongside."""
-        return draw(self, _one_key(key, seed, "sample_with_pdf"), _one_shape(sample_shape, shape), dtype,
+        return draw(self, *key_and_shape(key, sample_shape, seed, shape, "sample_with_pdf"), dtype,
                     "warp_with_pdf")
 
 
 _POINT_METHODS = ("warp", "warp_with_pdf", "pdf", "log_pdf", "inverse")
 # Per-point helpers some samplers add (one distribution each): they obey the invalid-parameter rule.
 _CHECKED_HELPERS = ("measure_valued_pair", "warp_with_info", "warp_with_remainder")
+
+
+def _no_inverse(cls) -> str:
+    """Why `cls` has no inverse: a library sampler's warp is not a bijection (a mixture, a
+    rejection loop, a discrete choice); a user's class has simply not written one."""
+    library = [c for c in cls.__mro__ if issubclass(c, Sampler) and c not in (Sampler, WrapsSampler)
+               and c.__module__.startswith("jaxsample.")]
+    if library:
+        return f"{cls.__name__} has no inverse: its warp is not a bijection"
+    return (f"{cls.__name__} does not define inverse(x); write one (the u in [0, 1)^uniform_dims with "
+            f"warp(u) = x) to use inverse and what needs it (jaxsample.testing.inverse_error, the "
+            f"boundary terms of jaxsample.edges)")
+
+
+def _is_shape(value) -> bool:
+    """Whether `value` is a sample shape as written by hand: an int or a tuple or list of ints."""
+    def is_int(v):
+        return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+    return is_int(value) or (isinstance(value, (tuple, list)) and all(is_int(v) for v in value))
+
+
+def key_and_shape(key, sample_shape, seed, shape, owner):
+    """(key, sample shape) of a `sample`-like call: `sample(key, sample_shape)`, with `seed=` for
+    the key and `shape=` for the sample shape as aliases.
+
+    TFP's spelling `sample((5,), seed=key)` is accepted: the key is given by name, and what stands
+    in the key's place is an int or a tuple or list of ints, which no key is, so it can only be the
+    sample shape. Both positionally in TFP's order, `sample((5,), key)`, is refused with the
+    library's own call (a TypeError, as for every other key mistake).
+    """
+    if seed is not None and _is_shape(key) and sample_shape in ((), None) and shape is None:
+        key, sample_shape = None, key
+    elif seed is None and _is_shape(key) and isinstance(sample_shape, (jax.Array, np.ndarray)):
+        shown = tuple(key) if isinstance(key, (tuple, list)) else (key,)
+        raise TypeError(f"{owner}: the key comes first: {owner}(key, {shown}), "
+                        f"or with the key by name as in TFP, {owner}({key!r}, seed=key)")
+    return _one_key(key, seed, owner), _one_shape(sample_shape, shape)
 
 
 def _one_key(key, seed, owner):
@@ -179,12 +216,28 @@ def _batch_shape(sampler) -> tuple[int, ...]:
         shape = np.shape(leaf)
         if rank is not None:
             shapes.append(tuple(shape[: max(len(shape) - rank, 0)]))
-    return tuple(jnp.broadcast_shapes(*shapes)) if shapes else ()
+    try:
+        return tuple(jnp.broadcast_shapes(*shapes)) if shapes else ()
+    except ValueError:
+        raise ValueError(f"{type(sampler).__name__}: the batch shapes of its parameters must broadcast "
+                         f"(equal, or 1 or missing where they differ); got {_batch_shapes_named(sampler)}") from None
+
+
+def _batch_shapes_named(sampler) -> str:
+    """'path (batch shape)' for each batchable parameter of `sampler`: for the message of `_batch_shape`."""
+    paths = [jax.tree_util.keystr(path) for path, _ in jax.tree_util.tree_flatten_with_path(sampler)[0]]
+    named = []
+    for path, leaf, rank in zip(paths, jax.tree_util.tree_leaves(sampler), _leaf_ranks(sampler)):
+        shape = np.shape(leaf)
+        if rank is not None:
+            named.append(f"{path.lstrip('.')} {tuple(shape[: max(len(shape) - rank, 0)])}")
+    return ", ".join(named)
 
 
 def flat_batch(sampler, batch: tuple[int, ...]):
     """`sampler` with every parameter broadcast to `batch` and the batch flattened to one leading
     axis: a pytree that `jax.vmap(..., in_axes=0)` splits into its batch members."""
+    refuse_class("", "sampler", sampler)
     size = int(np.prod(batch, dtype=np.int64))
     leaves, treedef = jax.tree_util.tree_flatten(sampler)
     flat = []
@@ -195,8 +248,34 @@ def flat_batch(sampler, batch: tuple[int, ...]):
     return jax.tree_util.tree_unflatten(treedef, flat)
 
 
+def refuse_class(owner: str, name: str, value) -> None:
+    """ValueError for a sampler class given where an instance is needed (`UniformSphere` for
+    `UniformSphere()`), naming `owner`'s parameter `name`: read from a class, `batch_shape` and
+    the other properties are property objects, which fail far from the argument."""
+    if isinstance(value, type) and issubclass(value, Sampler):
+        try:
+            needs = any(p.default is inspect.Parameter.empty and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)
+                        for p in inspect.signature(value).parameters.values())
+        except (TypeError, ValueError):
+            needs = True
+        call = f"{value.__name__}(...)" if needs else f"{value.__name__}()"
+        raise ValueError(f"{owner + ': ' if owner else ''}parameter '{name}' must be a sampler instance; "
+                         f"got the class {value.__name__}: call it, {call}")
+
+
+def check_sampler(owner: str, name: str, value) -> None:
+    """Raise unless `value` is a sampler instance: `ValueError` for a sampler class (naming the
+    call that makes an instance), `TypeError` for anything else that is not a `Sampler`."""
+    refuse_class(owner, name, value)
+    if not isinstance(value, Sampler):
+        raise TypeError(f"{owner}: parameter '{name}' must be a jaxsample.Sampler instance; "
+                        f"got {type(value).__name__} {value!r}")
+
+
 def check_unbatched(sampler, owner: str) -> None:
-    """Raise for a batched sampler where an entry point takes one distribution."""
+    """Raise for anything but a sampler instance (`check_sampler`), and for a batched sampler
+    where an entry point takes one distribution."""
+    check_sampler(owner, "sampler", sampler)
     if sampler.batch_shape:
         raise ValueError(f"{owner}: takes one distribution; the sampler has batch_shape {sampler.batch_shape} "
                          "(jax.vmap over the batch, or use `estimate`, which maps over it)")
@@ -364,7 +443,7 @@ def _draw_batch(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: st
 
 
 def _as_dtype(dtype):
-    return default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    return resolve_float_dtype("sample", dtype)
 
 
 _DRAW_CHUNK = 1 << 16

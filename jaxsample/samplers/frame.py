@@ -28,7 +28,13 @@ class Frame:
 
     @classmethod
     def from_normal(cls, normal: jax.Array) -> "Frame":
-        """Frame whose z axis is `normal` (normalised here; a zero or non-finite normal raises)."""
+        """Frame whose z axis is `normal` (normalised here).
+
+        A concrete normal that is zero, non-finite, or too short or too long to normalise in its
+        dtype raises: n / |n| is computed from n·n, which underflows to 0 below about 1e-19
+        (float32; 1e-154 in float64) and overflows above about 1e19 (1e154), and gives NaN or a
+        zero axis there. A traced normal cannot be checked (a zero one gives a NaN frame).
+        """
         check_number("Frame.from_normal", "normal", normal)
         normal = jnp.asarray(as_parameter(normal))
         v = concrete_value(normal)
@@ -38,6 +44,15 @@ class Frame:
             norms = np.linalg.norm(v, axis=-1)
             if not np.all(np.isfinite(norms)) or np.any(norms == 0):
                 raise ValueError("Frame.from_normal: parameter 'normal' must be finite and non-zero")
+            dtype = normal.dtype if jnp.issubdtype(normal.dtype, jnp.floating) else jnp.zeros(()).dtype
+            info = np.finfo(dtype)
+            squares = np.sum(np.square(v), axis=-1)
+            bad = (squares < info.tiny) | (squares > info.max)
+            if np.any(bad):
+                shortest, longest = np.sqrt(info.tiny), np.sqrt(info.max)
+                raise ValueError(f"Frame.from_normal: parameter 'normal' must have a length in "
+                                 f"[{shortest:.3g}, {longest:.3g}] to be normalised in {dtype}; got length "
+                                 f"{np.ravel(norms[bad] if norms.ndim else norms)[0]:.3g} (scale it first)")
         normal = normal / jnp.linalg.norm(normal, axis=-1, keepdims=True)
         nx, ny, nz = normal[..., 0], normal[..., 1], normal[..., 2]
         s = jnp.copysign(jnp.ones_like(nz), nz)

@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
+from .base import Sampler, refuse_class
 from .._core.pytree import pytree_dataclass
 from .discrete import as_array, cdf_from_weights, check_weights, select_with_remainder, valid_tables
 
@@ -48,6 +48,9 @@ class Mixture(Sampler):
 
     def __post_init__(self):
         object.__setattr__(self, "weights", as_array(self.weights))
+        if isinstance(self.components, (tuple, list)):
+            for c in self.components:
+                refuse_class("Mixture", "components", c)
         if not isinstance(self.components, (tuple, list)) or not all(isinstance(c, Sampler) for c in self.components):
             return  # rebuilt by JAX with placeholders
         object.__setattr__(self, "components", tuple(self.components))

@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .base import Sampler, WrapsSampler
+from .base import Sampler, WrapsSampler, refuse_class
 from .._core.params import concrete_value
 from .._core.pytree import pytree_dataclass
 from .frame import Frame
@@ -36,12 +36,24 @@ class Oriented(WrapsSampler):
         return jnp.all(jnp.isfinite(f.x)) & jnp.all(jnp.isfinite(f.y)) & jnp.all(jnp.isfinite(f.z))
 
     def __init__(self, base: Sampler, normal=None, *, frame: Frame | None = None):
+        refuse_class("Oriented", "base", base)
+        name = "frame" if frame is not None else "normal"
         if frame is None:
             if normal is None:
                 raise ValueError("Oriented: give 'normal' (a non-zero 3-vector)")
             frame = Frame.from_normal(normal)
         if getattr(base, "event_shape", None) != (3,):
             raise ValueError("Oriented: parameter 'base' must be a directional sampler (event_shape (3,))")
+        # A batch of bases turned by a batch of normals pairs them member by member: their batch
+        # shapes must broadcast, as any batched parameters do.
+        base_batch, axis_batch = tuple(base.batch_shape), tuple(jnp.shape(frame.z)[:-1])
+        try:
+            jnp.broadcast_shapes(base_batch, axis_batch)
+        except ValueError:
+            raise ValueError(f"Oriented: the batch shapes of 'base' {base_batch} and '{name}' {axis_batch} ({name} "
+                             f"of shape {tuple(jnp.shape(frame.z))}) must broadcast (equal, or 1 or missing where "
+                             f"they differ): give one normal, normals of shape {base_batch + (3,)}, or a base "
+                             f"without a batch") from None
         object.__setattr__(self, "base", base)
         object.__setattr__(self, "frame", frame)
 

@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler, _one_key, _one_shape, draw
+from .base import Sampler, draw, key_and_shape, refuse_class
 from .._core.params import check_parameter, in_range
 from .._core.pytree import pytree_dataclass
 
@@ -73,6 +73,8 @@ class Rejection(Sampler):
     support: Any = None
 
     def __post_init__(self):
+        refuse_class("Rejection", "proposal", self.proposal)
+        refuse_class("Rejection", "fallback", self.fallback)
         check_parameter("Rejection", "bound", self.bound, 1.0, np.inf, high_open=True)
         check_parameter("Rejection", "tries", self.tries, 1, 4096)
 
@@ -120,7 +122,7 @@ class Rejection(Sampler):
 
     def sample_with_info(self, key=None, sample_shape=(), dtype=None, *, seed=None, shape=None):
         """(samples, RejectionInfo) from uniforms drawn with `key` (or `seed=`; as `sample`)."""
-        return draw(self, _one_key(key, seed, "sample_with_info"), _one_shape(sample_shape, shape), dtype,
+        return draw(self, *key_and_shape(key, sample_shape, seed, shape, "sample_with_info"), dtype,
                     "warp_with_info")
 
     def pdf(self, x):

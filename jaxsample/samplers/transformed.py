@@ -8,7 +8,7 @@ from typing import Callable
 import jax
 import jax.numpy as jnp
 
-from .base import Sampler, WrapsSampler
+from .base import Sampler, WrapsSampler, refuse_class
 from .._core.pytree import pytree_attributes
 
 
@@ -42,6 +42,7 @@ class Transformed(WrapsSampler):
     """
 
     def __init__(self, base: Sampler, forward: Callable, inverse: Callable, domain=None, measure=None):
+        refuse_class("Transformed", "base", base)
         if not isinstance(base, Sampler):
             raise ValueError("Transformed: parameter 'base' must be a Sampler")
         self.base = base

@@ -60,7 +60,7 @@ from jax.flatten_util import ravel_pytree
 
 from .._core.entry import compiled_entry
 from .._core.counts import check_count
-from .._core.params import check_choice, default_float_dtype
+from .._core.params import check_choice, resolve_float_dtype
 from ..estimators.engine import run_stream
 from ..estimators.mis import heuristic_weights
 from ..estimators.plain import check_mode
@@ -327,7 +327,7 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     per-evaluation variance, so strategies compare at equal cost.
     """
     n = _check_options("shade", strategy, mode, heuristic, n)
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("shade", dtype)
     values_fn, dims, count = _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype)
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh,
                      chunk_size=chunk_size, out_shape=(), dtype=dtype, owner="shade")
@@ -430,7 +430,7 @@ def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh,
     flat, unravel = ravel_pytree(params)
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"shade_grad: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("shade_grad", dtype)
     _, dims, count = _program(*make(params), strategy, mode, heuristic, n, dtype, boundary)
 
     def values_fn(u):

@@ -40,6 +40,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.params import resolve_float_dtype
 from .index import Index, as_index, divmod_index, floordiv, index_range, index_value, less_than
 from .philox import (_STREAM_JITTER, _alignment, _STREAM_RANDOM, _STREAM_SCRAMBLE, _index_words, _philox_words,
                      _samples_per_block, _u32, bits_to_unit, philox4x32, random_bits, seed_from_key)
@@ -296,7 +297,7 @@ def uniform_block(uniforms: SourceLike, key: jax.Array, offset, count: int, dims
     """
     source = as_source(uniforms)
     seed = seed_from_key(key, "uniform_block")
-    dtype = jnp.zeros(()).dtype if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("uniform_block", dtype)
     return _block_jit(source, seed, as_index(offset, int(count)), int(count), int(dims), dtype, total)
 
 
