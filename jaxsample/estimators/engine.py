@@ -48,7 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.counts import check_count
-from .._core.params import default_float_dtype
+from .._core.params import default_float_dtype, resolve_float_dtype
 from .._core.pytree import pytree_dataclass
 from .._core import doublefloat
 from .._core.computed_once import computed_once
@@ -302,7 +302,7 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
     """
     source = as_source(uniforms)
     replicates = source.replicates
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype(owner, dtype)
     devices = 1 if mesh is None else mesh.size
     n = _check_n(owner, n, replicates, devices, source)
     chunk_size = _check_chunk_size(owner, chunk_size, replicates)

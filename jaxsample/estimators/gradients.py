@@ -53,7 +53,7 @@ import jax.numpy as jnp
 
 from .._core.entry import compiled_entry
 from ..samplers.base import checked
-from .._core.params import check_choice, default_float_dtype
+from .._core.params import check_choice, default_float_dtype, resolve_float_dtype
 from .engine import run_stream
 from .integrand import IntegrandLayout, integrand_layout
 from .plain import broadcast_like, integrand_values, over_batch
@@ -213,7 +213,7 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
     if leave_one_out and boundary_dims(g):
         raise ValueError("expectation: baseline='leave_one_out' does not add the boundary terms of an integrand "
                          "with declared discontinuities; use a constant baseline")
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("expectation", dtype)
     layout = integrand_layout(g, sampler, dtype, "expectation")
     if baseline is not None and not leave_one_out:
         if gradient != "score":

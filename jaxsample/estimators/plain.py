@@ -15,7 +15,7 @@ import jax.numpy as jnp
 from .._core.entry import compiled_entry
 from ..samplers.base import checked
 from .._core.numerics import safe_div
-from .._core.params import check_choice, default_float_dtype
+from .._core.params import check_choice, default_float_dtype, resolve_float_dtype
 from .engine import run_stream
 from .integrand import integrand_layout, layout_of
 from .result import Estimate
@@ -153,7 +153,7 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
                           sampler, key, "estimate")
     sampler = checked(sampler)  # the invalid-parameter rule, once, outside the loop
     dims = sampler.uniform_dims + boundary_dims(f)
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("estimate", dtype)
     layout = integrand_layout(f, sampler, dtype, "estimate")
 
     def values_fn(u):

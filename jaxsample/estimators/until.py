@@ -38,7 +38,7 @@ from .._core.counts import check_count
 from ..samplers.base import check_unbatched, checked
 from .._core.doublefloat import _float64_available
 from .._core.numerics import safe_div, safe_sqrt
-from .._core.params import check_choice, default_float_dtype
+from .._core.params import check_choice, default_float_dtype, resolve_float_dtype
 from .._core.pytree import pytree_dataclass
 from ..uniforms import Random, Sobol, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, offset_at
@@ -190,7 +190,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
     min_n = min(min_n, max_n)
     max_steps, min_steps = max_n // chunk, min_n // chunk
     wide = max_n > NARROW_LIMIT   # offsets past 2^32 are two-word indices
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("estimate_until", dtype)
     check_unbatched(sampler, "estimate_until")
     sampler = checked(sampler)
     dims = sampler.uniform_dims

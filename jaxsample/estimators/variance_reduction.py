@@ -27,7 +27,7 @@ import jax.numpy as jnp
 from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from ..samplers.base import check_unbatched, checked
-from .._core.params import default_float_dtype
+from .._core.params import default_float_dtype, resolve_float_dtype
 from .engine import run_stream, stderr_floor
 from .integrand import integrand_layout, require_real_scalar
 from .plain import _detach, broadcast_like, check_mode, packed_values
@@ -45,7 +45,7 @@ def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, ow
     check_mode(owner, mode)
     check_unbatched(sampler, owner)
     sampler = checked(sampler)
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype(owner, dtype)
     layout = integrand_layout(f, sampler, dtype, owner)
     require_real_scalar(integrand_layout(h, sampler, dtype, owner), owner, h_name, why)
 
@@ -113,7 +113,7 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
     n = check_count("estimate_antithetic", "n", n, minimum=2)
     if n % 2:
         raise ValueError(f"estimate_antithetic: parameter 'n' must be even (n/2 antithetic pairs); got {n}")
-    dtype = default_float_dtype() if dtype is None else jnp.dtype(dtype)
+    dtype = resolve_float_dtype("estimate_antithetic", dtype)
     layout = integrand_layout(f, sampler, dtype, "estimate_antithetic")
     return layout.unpack_result(_antithetic(f, sampler, key, n, mode, uniforms, chunk_size, dtype, mesh, layout))
 

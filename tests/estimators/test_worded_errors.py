@@ -98,6 +98,7 @@ def test_float64_without_x64_is_refused_not_truncated():
         "expectation": lambda: js.expectation(z, sphere, KEY, N, dtype="float64"),
         "estimate_mis": lambda: js.estimate_mis(z, [sphere, sphere], KEY, [N, N], dtype=np.float64),
         "estimate_until": lambda: js.estimate_until(z, sphere, KEY, rtol=0.1, max_n=N, dtype=jnp.float64),
+        "estimate_antithetic": lambda: js.estimate_antithetic(z, sphere, KEY, N, dtype=jnp.float64),
         "sample": lambda: sphere.sample(KEY, (2,), jnp.float64),
     }.items():
         with pytest.raises(ValueError, match=rf"^{owner}: {need}"):
