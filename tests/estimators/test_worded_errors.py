@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import jaxsample as js
-from jaxsample._core.params import default_float_dtype, resolve_float_dtype
+from jaxsample._core.params import resolve_float_dtype
 
 KEY = jax.random.key(29)
 N = 64
@@ -89,24 +89,25 @@ def test_an_oriented_batch_must_broadcast_with_its_normals():
         rebuilt.batch_shape
 
 
-@pytest.mark.skipif(default_float_dtype() == np.float64, reason="float64 is available under jax_enable_x64")
 def test_float64_without_x64_is_refused_not_truncated():
-    need = r"parameter 'dtype' is float64, which needs jax_enable_x64: call jax\.config\.update"
-    sphere = js.UniformSphere()
-    for owner, call in {
-        "estimate": lambda: js.estimate(z, sphere, KEY, N, dtype=jnp.float64),
-        "expectation": lambda: js.expectation(z, sphere, KEY, N, dtype="float64"),
-        "estimate_mis": lambda: js.estimate_mis(z, [sphere, sphere], KEY, [N, N], dtype=np.float64),
-        "estimate_until": lambda: js.estimate_until(z, sphere, KEY, rtol=0.1, max_n=N, dtype=jnp.float64),
-        "estimate_antithetic": lambda: js.estimate_antithetic(z, sphere, KEY, N, dtype=jnp.float64),
-        "sample": lambda: sphere.sample(KEY, (2,), jnp.float64),
-    }.items():
-        with pytest.raises(ValueError, match=rf"^{owner}: {need}"):
-            call()
-    assert resolve_float_dtype("estimate", None) == resolve_float_dtype("estimate", float) == np.float32
-    assert resolve_float_dtype("estimate", "float32") == np.float32
-    with pytest.raises(ValueError, match=r"estimate: parameter 'dtype' must be float32 or float64"):
-        resolve_float_dtype("estimate", jnp.int32)
+    """Refused with x64 off (switched off here, so the test runs under either setting)."""
+    with jax.enable_x64(False):
+        need = r"parameter 'dtype' is float64, which needs jax_enable_x64: call jax\.config\.update"
+        sphere = js.UniformSphere()
+        for owner, call in {
+            "estimate": lambda: js.estimate(z, sphere, KEY, N, dtype=jnp.float64),
+            "expectation": lambda: js.expectation(z, sphere, KEY, N, dtype="float64"),
+            "estimate_mis": lambda: js.estimate_mis(z, [sphere, sphere], KEY, [N, N], dtype=np.float64),
+            "estimate_until": lambda: js.estimate_until(z, sphere, KEY, rtol=0.1, max_n=N, dtype=jnp.float64),
+            "estimate_antithetic": lambda: js.estimate_antithetic(z, sphere, KEY, N, dtype=jnp.float64),
+            "sample": lambda: sphere.sample(KEY, (2,), jnp.float64),
+        }.items():
+            with pytest.raises(ValueError, match=rf"^{owner}: {need}"):
+                call()
+        assert resolve_float_dtype("estimate", None) == resolve_float_dtype("estimate", float) == np.float32
+        assert resolve_float_dtype("estimate", "float32") == np.float32
+        with pytest.raises(ValueError, match=r"estimate: parameter 'dtype' must be float32 or float64"):
+            resolve_float_dtype("estimate", jnp.int32)
 
 
 def test_the_tfp_spelling_of_sample_draws_the_same_points():
