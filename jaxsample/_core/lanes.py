@@ -11,8 +11,8 @@ components (`x[0] * a[0] + ...`) the same integrand is one loop fusion, 10-30x f
 
 `lane_map(fn)` gets that fusion for every way of writing the integrand. It traces `fn` on ONE
 point and evaluates the resulting jaxpr with a small interpreter in which a per-point value of
-shape S is a NumPy object array of shape S whose elements are arrays over the points (one per element, the lanes):
-reshapes, slices, stacks, broadcasts and transposes only rearrange those arrays; `dot_general`
+shape S is a NumPy object array of shape S whose elements are arrays over the points (one per
+element, the lanes): reshapes, slices, stacks, broadcasts and transposes only rearrange those arrays; `dot_general`
 and the reductions become sums of elementwise products written out in order; elementwise
 primitives apply lane by lane. XLA then sees only elementwise arithmetic on (count,) vectors,
 which it fuses into a single loop. Nothing is approximated: every lane computes the same
@@ -21,11 +21,22 @@ gradients agree to float rounding, and autodiff, `jit` and `vmap` see ordinary J
 
 Anything else (gathers, loops, sorts, custom derivative rules, an operation with an operand or
 result of more than `MAX_LANES` elements per point, a dot_general of more than `_MAX_TERMS`
-multiply-adds, elementwise work on values already stacked) is evaluated as before, by `jax.vmap`
-of that one primitive on the stacked (points, *S) arrays, so every program works and only the
-small-vector part is rewritten; a rule that cannot handle its inputs falls back the same way.
-`pjit` calls (functions under `jax.jit`) are inlined. Tuple inputs are coordinate columns of one
-dtype (the first column's).
+multiply-adds, elementwise work on values already stacked) is evaluated by `jax.vmap` of that one
+primitive on the stacked (points, *S) arrays, so every program works and only the small-vector
+part is rewritten. That fallback is a decision taken before a rule runs: the primitive has no rule,
+its values are too wide, or the rule's own checks decline the case (it returns `NotImplemented`);
+an exception raised inside a rule is a bug and propagates. `lane_map(..., strict=True)` raises
+`LaneFallback` instead of falling back, which is how the tests pin the programs that must stay
+on the lanes. Calls of `jax.jit`-ed functions (`jnp.clip`, `jnp.where`, `jnp.linalg.norm`, ...)
+are inlined. Tuple inputs are coordinate columns of one dtype (the first column's).
+
+The tables below are keyed on primitive objects, looked up once at import: a primitive this JAX
+does not have is an ImportError naming it, not a silent slowdown. A few primitives are newer than
+the oldest supported JAX; each is required from the version that introduced it and skipped before
+(those versions express the same operation with primitives that have rules).
+
+`reduce_max`/`reduce_min` follow JAX's derivative at ties (the tangent is split evenly among the
+elements equal to the result), which a chain of pairwise `max` would not (it halves per step).
 """
 
 from __future__ import annotations
@@ -37,8 +48,9 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 from jax.extend import core as jex_core
+from jax.extend.core import primitives as jex_primitives
 
-__all__ = ["lane_map", "MAX_LANES"]
+__all__ = ["lane_map", "LaneFallback", "MAX_LANES"]
 
 # Per-point values with more elements than this stay stacked (count, *S) arrays: unrolling a
 # (1000,) per-point vector into 1000 lanes would trade a tight loop for a huge program.
@@ -46,19 +58,67 @@ MAX_LANES = 64
 # ... and a dot_general with more multiply-adds than this stays a dot (64x64 weights: 4096).
 _MAX_TERMS = 4 * MAX_LANES
 
-_ELEMENTWISE = frozenset("""
+
+class LaneFallback(RuntimeError):
+    """Raised by `lane_map(..., strict=True)` where a primitive would be evaluated by vmap."""
+
+
+# -- the primitives, as objects --------------------------------------------------------------------
+
+def _jax_version() -> tuple[int, ...]:
+    info = getattr(jax, "__version_info__", None)
+    if info is not None:
+        return tuple(int(v) for v in info[:3])
+    return tuple(int("".join(c for c in part if c.isdigit()) or 0) for part in jax.__version__.split(".")[:3])
+
+
+def _primitive_modules():
+    modules = [jex_primitives, lax]
+    try:  # primitives that jax.lax does not export (stack, unstack, tile, mulhi)
+        from jax._src.lax import lax as src_lax
+        modules.append(src_lax)
+    except ImportError:
+        pass
+    return modules
+
+
+_MODULES = _primitive_modules()
+
+
+def _find(name: str):
+    """The primitive object `<name>_p` of this JAX, or None."""
+    for module in _MODULES:
+        prim = getattr(module, name + "_p", None)
+        if isinstance(prim, jex_core.Primitive):
+            return prim
+    return None
+
+
+def _keyed(entries: dict, since: tuple[int, ...] | None = None) -> dict:
+    """{primitive object: value} for `entries` {primitive name: value}. A name this JAX has no
+    primitive for is an ImportError, except under `since` (the first JAX version that has them)
+    on an older JAX, where the missing ones are left out."""
+    found = {name: _find(name) for name in entries}
+    missing = [name for name, prim in found.items() if prim is None]
+    if missing and (since is None or _jax_version() >= since):
+        raise ImportError(f"jaxsample._core.lanes: JAX {jax.__version__} has no primitive(s) {missing}; "
+                          "the lane interpreter's tables need updating for this JAX")
+    return {prim: entries[name] for name, prim in found.items() if prim is not None}
+
+
+_ELEMENTWISE_NAMES = """
     neg sign floor ceil round is_finite exp exp2 log expm1 log1p tanh logistic sin cos tan asin
     acos atan sinh cosh asinh acosh atanh lgamma digamma erf erfc erf_inv real imag complex conj
     abs sqrt rsqrt cbrt not population_count clz integer_pow square convert_element_type
     reduce_precision add sub mul div rem pow max min nextafter atan2 and or xor shift_left
     shift_right_arithmetic shift_right_logical eq ne ge gt le lt select_n clamp copy
-    igamma igammac random_gamma_grad bessel_i0e bessel_i1e polygamma zeta regularized_incomplete_beta
-    eq_to le_to lt_to mulhi stop_gradient
-""".split())
+    igamma igammac igamma_grad_a bessel_i0e bessel_i1e polygamma zeta regularized_incomplete_beta
+    eq_to le_to lt_to stop_gradient
+""".split()
 
-_REDUCERS = {"reduce_sum": lax.add, "reduce_max": lax.max, "reduce_min": lax.min,
-             "reduce_prod": lax.mul, "reduce_and": lax.bitwise_and, "reduce_or": lax.bitwise_or,
-             "reduce_xor": lax.bitwise_xor}
+# Calls of a jaxpr, evaluated inline: the primitive and the parameter that holds its jaxpr
+# (a ClosedJaxpr, or an open Jaxpr for `call`).
+_INLINED = _keyed({"jit": "jaxpr", "closed_call": "call_jaxpr", "call": "call_jaxpr"})
 
 
 class _Lanes:
@@ -107,8 +167,9 @@ def _object_array(items, shape) -> np.ndarray:
 
 
 class _Evaluator:
-    def __init__(self, lane_shape: tuple[int, ...]):
+    def __init__(self, lane_shape: tuple[int, ...], strict: bool = False):
         self.lane_shape = lane_shape
+        self.strict = strict
 
     # -- conversions --------------------------------------------------------------------------
 
@@ -175,34 +236,36 @@ class _Evaluator:
         if not any(self.batched(x) for x in inputs):
             # Shared by every point (parameters, constants): evaluate once, as JAX would.
             return _bind(prim, params, inputs)
-        name = prim.name
-        if name in ("pjit", "jit", "closed_call", "core_call"):
-            closed = params.get("jaxpr") or params.get("call_jaxpr")
+        if prim in _INLINED:
+            closed = params[_INLINED[prim]]
             inner = closed.jaxpr if hasattr(closed, "jaxpr") else closed
             consts = closed.consts if hasattr(closed, "consts") else ()
             return self.run(inner, consts, inputs)
-        rule = _RULES.get(name)
-        if rule is None and name in _ELEMENTWISE:
-            rule = _elementwise
-        too_wide = any(_size(v) > MAX_LANES for v in list(eqn.outvars) + list(eqn.invars))
-        # A value the fallback already stacked stays stacked through elementwise work: XLA is fast
-        # on elementwise (points, *S) arrays; only mixing the small axes (dots, reductions,
-        # rearrangements) needed lanes.
-        stacked_elementwise = rule is _elementwise and any(isinstance(x, _Stacked) for x in inputs)
-        if rule is not None and not too_wide and not stacked_elementwise:
-            lanes = [self.as_lanes(x) if self.batched(x) else x for x in inputs]
-            if all(x is not None for x in lanes):
-                try:
-                    result = rule(self, eqn, lanes)
-                except (TypeError, ValueError):
-                    result = NotImplemented  # a gap in a rule: vmap is always right
-                if result is not NotImplemented:
-                    return result
-        return self.fallback(eqn, inputs)
+        rule = _RULES.get(prim)
+        if rule is None:
+            return self.fallback(eqn, inputs, "no lane rule for this primitive")
+        if any(_size(v) > MAX_LANES for v in list(eqn.outvars) + list(eqn.invars)):
+            return self.fallback(eqn, inputs, f"a value of more than MAX_LANES = {MAX_LANES} elements")
+        if rule is _elementwise and any(isinstance(x, _Stacked) for x in inputs):
+            # A value the fallback already stacked stays stacked through elementwise work: XLA is
+            # fast on elementwise (points, *S) arrays; only mixing the small axes (dots,
+            # reductions, rearrangements) needs lanes. A layout choice, not a missing rule.
+            return self.fallback(eqn, inputs, None)
+        lanes = [self.as_lanes(x) if self.batched(x) else x for x in inputs]
+        if any(x is None for x in lanes):
+            return self.fallback(eqn, inputs, "an operand stacked wider than MAX_LANES")
+        result = rule(self, eqn, lanes)
+        if result is NotImplemented:
+            return self.fallback(eqn, inputs, "its rule declines these parameters or dtypes")
+        return result
 
-    def fallback(self, eqn, inputs):
-        """vmap of this one primitive over the stacked (points, *S) operands."""
+    def fallback(self, eqn, inputs, reason):
+        """vmap of this one primitive over the stacked (points, *S) operands. `reason`: why the
+        lanes cannot take it (None for elementwise work kept stacked), raised in strict mode."""
         prim = eqn.primitive
+        if self.strict and reason is not None:
+            raise LaneFallback(f"lane_map(strict=True): `{prim.name}` would be evaluated by vmap: {reason} "
+                               f"(per-point operands {[v.aval.str_short() for v in eqn.invars]})")
         lanes = self.lane_shape
         points = int(np.prod(lanes, dtype=np.int64))
         axes = [0 if self.batched(x) else None for x in inputs]
@@ -241,13 +304,9 @@ def _cells_of(ev: _Evaluator, x, shape, dtype):
 def _elementwise(ev, eqn, inputs):
     shape = eqn.outvars[0].aval.shape
     prim = eqn.primitive
-    if prim.multiple_results:
-        return NotImplemented
     cells = [_cells_of(ev, x, shape, v.aval.dtype) for x, v in zip(inputs, eqn.invars)]
-    try:  # size-1 axes broadcast (lax accepts (1,) against (3,))
-        cells = [c if c.shape == shape else np.broadcast_to(c, shape) for c in cells]
-    except ValueError:
-        return NotImplemented
+    # Size-1 axes broadcast: lax accepts (1,) against (3,) (equal ranks; a scalar is filled).
+    cells = [c if c.shape == shape else np.broadcast_to(c, shape) for c in cells]
     outs = [prim.bind(*[ev.lane(c[idx]) for c in cells], **eqn.params) for idx in np.ndindex(shape)]
     return _Lanes(_object_array(outs, shape), eqn.outvars[0].aval.dtype)
 
@@ -353,23 +412,53 @@ def _pad(ev, eqn, inputs):
     return _rearranged(eqn, out)
 
 
+def _chained(combine, terms):
+    total = terms[0]
+    for t in terms[1:]:
+        total = combine(total, t)
+    return total
+
+
+def _chooser(combine):
+    """`combine` (lax.max or lax.min) chained over the terms, with the derivative of JAX's
+    reduce_max/reduce_min: the tangent is the mean of the tangents of the terms equal to the
+    result. Differentiating the chain itself would split 0.5/0.5 at each tied pair, weighting the
+    first of three tied terms 1/4, not 1/3. The primal is the chain, so values are unchanged."""
+
+    @jax.custom_jvp
+    def choose(*terms):
+        return _chained(combine, terms)
+
+    @choose.defjvp
+    def choose_jvp(primals, tangents):
+        ans = choose(*primals)
+        hits = [lax.convert_element_type(lax.eq(t, ans), ans.dtype) for t in primals]
+        counts = _chained(lax.add, hits)
+        picked = _chained(lax.add, [lax.mul(dt, h) for dt, h in zip(tangents, hits)])
+        return ans, lax.div(picked, counts)
+
+    return choose
+
+
+_MAX_OF, _MIN_OF = _chooser(lax.max), _chooser(lax.min)
+
+
 def _reduce(ev, eqn, inputs):
-    combine = _REDUCERS[eqn.primitive.name]
+    combine, chooser = _REDUCERS[eqn.primitive]
+    inexact = jnp.issubdtype(eqn.outvars[0].aval.dtype, jnp.inexact)
     cells = inputs[0].cells
     axes = tuple(eqn.params["axes"])
     keep = [d for d in range(cells.ndim) if d not in axes]
     moved = cells.transpose(keep + list(axes))
     out_shape = moved.shape[: len(keep)]
     flat = moved.reshape(out_shape + (-1,))
+    if flat.shape[-1] == 0:
+        return NotImplemented  # a reduction over no elements is its identity; vmap knows it
     outs = []
     for idx in np.ndindex(out_shape):
         terms = [ev.lane(t) for t in flat[idx]]
-        if not terms:
-            return NotImplemented
-        total = terms[0]
-        for t in terms[1:]:
-            total = combine(total, t)
-        outs.append(total)
+        # Only a max/min of floats has a derivative to get right; integers take the plain chain.
+        outs.append(chooser(*terms) if chooser is not None and inexact else _chained(combine, terms))
     return _rearranged(eqn, _object_array(outs, out_shape))
 
 
@@ -408,26 +497,26 @@ def _dot_general(ev, eqn, inputs):
     return _rearranged(eqn, _object_array(outs, eqn.outvars[0].aval.shape))
 
 
+# Reductions: the pairwise combine, and for max/min the chooser with JAX's derivative at ties.
+_REDUCERS = _keyed({"reduce_sum": (lax.add, None), "reduce_max": (lax.max, _MAX_OF),
+                    "reduce_min": (lax.min, _MIN_OF), "reduce_prod": (lax.mul, None),
+                    "reduce_and": (lax.bitwise_and, None), "reduce_or": (lax.bitwise_or, None),
+                    "reduce_xor": (lax.bitwise_xor, None)})
+
 _RULES = {
-    "broadcast_in_dim": _broadcast_in_dim,
-    "reshape": _reshape,
-    "squeeze": _squeeze,
-    "transpose": _transpose,
-    "rev": _rev,
-    "slice": _slice,
-    "concatenate": _concatenate,
-    "stack": _stack,
-    "split": _split,
-    "unstack": _unstack,
-    "tile": _tile,
-    "bitcast_convert_type": _bitcast_convert_type,
-    "pad": _pad,
-    "dot_general": _dot_general,
-    **{name: _reduce for name in _REDUCERS},
+    **_keyed(dict.fromkeys(_ELEMENTWISE_NAMES, _elementwise)),
+    **_keyed({"mulhi": _elementwise}, since=(0, 10, 2)),
+    **_keyed({"broadcast_in_dim": _broadcast_in_dim, "reshape": _reshape, "squeeze": _squeeze,
+              "transpose": _transpose, "rev": _rev, "slice": _slice, "concatenate": _concatenate,
+              "split": _split, "bitcast_convert_type": _bitcast_convert_type, "pad": _pad,
+              "dot_general": _dot_general}),
+    **_keyed({"tile": _tile}, since=(0, 9, 0)),
+    **_keyed({"stack": _stack, "unstack": _unstack}, since=(0, 10, 1)),
+    **{prim: _reduce for prim in _REDUCERS},
 }
 
 
-def lane_map(fn: Callable, lane_shape) -> Callable:
+def lane_map(fn: Callable, lane_shape, *, strict: bool = False) -> Callable:
     """`fn` maps ONE point (arrays of any shape, a pytree) to a pytree of arrays; the result maps
     per-coordinate lanes to the same outputs over all the points, like `jax.vmap(fn)`.
 
@@ -435,11 +524,15 @@ def lane_map(fn: Callable, lane_shape) -> Callable:
     returned function takes, for each argument of `fn`, either a tuple of d arrays of shape
     `lane_shape` (the coordinates of a flat (d,) argument: lanes as the sources make them) or one
     array of shape lane_shape + S (the vmap layout). It returns outputs of shape lane_shape + out.
+
+    `strict=True` raises `LaneFallback` (naming the primitive and why) where a primitive would be
+    evaluated by vmap instead of on the lanes; elementwise work on a value given or kept in the
+    stacked layout is not a fallback. For tests and for checking that an integrand stays fast.
     """
     lane_shape = (lane_shape,) if isinstance(lane_shape, (int, np.integer)) else tuple(lane_shape)
 
     def mapped(*args):
-        ev = _Evaluator(lane_shape)
+        ev = _Evaluator(lane_shape, strict)
         specs, inputs = [], []
         for a in args:
             if isinstance(a, (tuple, list)):

@@ -19,7 +19,7 @@ from jaxsample._core.lanes import lane_map
 A = jnp.array([0.3, -0.2, 0.9327379], jnp.float32)
 M = jnp.array([[0.5, -1.0, 2.0], [0.25, 0.0, -0.75]], jnp.float32)
 
-# Per-point programs covering the rules of jaxsample.lanes (dot_general, reductions, reshapes,
+# Per-point programs covering the rules of jaxsample._core.lanes (dot_general, reductions, reshapes,
 # slices, concatenation, padding, broadcasting of size-1 axes, integer and boolean arithmetic)
 # and the fallback (gather, sort, cumsum, a while loop, a custom derivative rule).
 PROGRAMS = {

@@ -1,0 +1,200 @@
+"""What keeps `lane_map` on its fast path, and what it does at the edges of it: the primitive
+objects its tables rely on exist in this JAX; the integrands users write stay on the lanes
+(`strict=True` raises where a primitive would go to vmap); a bug inside a rule is an error, not a
+silent vmap; max/min reductions have JAX's derivative at ties."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax import lax
+from jax.extend.core import primitives as P
+
+from jaxsample._core import lanes
+from jaxsample._core.lanes import LaneFallback, lane_map
+
+A = jnp.array([0.3, -0.2, 0.9327379], jnp.float32)
+R = jnp.array([[0.36, 0.48, -0.8], [-0.8, 0.6, 0.0], [0.48, 0.64, 0.6]], jnp.float32)
+N = 64
+
+# The primitives the fast path relies on in this JAX, by role. `pjit`, `core_call` and
+# `random_gamma_grad` are not primitives of JAX 0.10 (a `jax.jit` call binds `jit`).
+RELIED_ON = {
+    "inlined": "jit closed_call call",
+    "rearranging": "broadcast_in_dim reshape squeeze transpose rev slice concatenate split stack unstack "
+                   "tile pad bitcast_convert_type",
+    "mixing": "dot_general reduce_sum reduce_max reduce_min reduce_prod reduce_and reduce_or reduce_xor",
+    "elementwise": "add sub mul div neg max min abs sqrt rsqrt exp log sin cos atan2 integer_pow square pow "
+                   "select_n clamp convert_element_type eq ne lt le gt ge and or not stop_gradient copy",
+}
+
+
+def _object(name):
+    for module in (P, lax):
+        prim = getattr(module, name + "_p", None)
+        if prim is not None:
+            return prim
+    from jax._src.lax import lax as src_lax  # stack, unstack, tile: not exported by jax.lax
+    return getattr(src_lax, name + "_p")
+
+
+@pytest.mark.parametrize("role", sorted(RELIED_ON))
+def test_every_primitive_the_fast_path_relies_on_exists(role):
+    """Each primitive object exists in the installed JAX, carries the name its jaxprs print, and is
+    a key of the interpreter's tables (so a program binding it is taken on the lanes)."""
+    for name in RELIED_ON[role].split():
+        prim = _object(name)
+        assert isinstance(prim, jax.extend.core.Primitive) and prim.name == name, name
+        table = lanes._INLINED if role == "inlined" else lanes._RULES
+        assert prim in table, f"{name} is not in the lane tables"
+    if role == "mixing":
+        assert lanes._RULES[lax.reduce_max_p] is lanes._reduce and lanes._RULES[lax.dot_general_p] is lanes._dot_general
+
+
+def test_the_tables_hold_primitive_objects_and_a_missing_one_fails_loudly(monkeypatch):
+    keys = list(lanes._RULES) + list(lanes._INLINED) + list(lanes._REDUCERS)
+    assert all(isinstance(k, jax.extend.core.Primitive) for k in keys)
+    with pytest.raises(ImportError, match="random_gamma_grad"):
+        lanes._keyed({"add": 1, "random_gamma_grad": 2})
+    # A primitive newer than the installed JAX is left out, not required; from its version on it is.
+    monkeypatch.setattr(lanes, "_jax_version", lambda: (0, 7, 0))
+    assert lanes._keyed({"add": 1, "no_such_primitive": 2}, since=(0, 10, 1)) == {lax.add_p: 1}
+    monkeypatch.setattr(lanes, "_jax_version", lambda: (0, 10, 1))
+    with pytest.raises(ImportError, match="no_such_primitive"):
+        lanes._keyed({"no_such_primitive": 2}, since=(0, 10, 1))
+
+
+# Integrands as users write them; every one must run entirely on the lanes.
+FAST = {
+    "dot": lambda x: jnp.dot(x, A),
+    "matmul_operator": lambda x: x @ A,
+    "sum_product": lambda x: jnp.sum(x * A),
+    "einsum": lambda x: jnp.einsum("i,i->", x, A),
+    "vdot": lambda x: jnp.vdot(x, A),
+    "norm": lambda x: jnp.linalg.norm(x),
+    "normalize": lambda x: x / jnp.linalg.norm(x),
+    "norm_axis": lambda x: jnp.linalg.norm(jnp.outer(x, A), axis=0),
+    "cross": lambda x: jnp.cross(x, A),
+    "rotation_3x3": lambda x: R @ x,
+    "rotation_transposed": lambda x: x @ R.T,
+    "where": lambda x: jnp.where(x[2] > 0, x[0], -x[1]),
+    "clip": lambda x: jnp.clip(x @ A, 0.0, 1.0),
+    "relu_cubed": lambda x: jnp.maximum(x @ A, 0.0) ** 3,
+    "stack": lambda x: jnp.stack([x[0] * x[1], x[2]]),
+    "index": lambda x: x[2] * x[0],
+    "slices": lambda x: x[:2] @ A[1:],
+    "max_min": lambda x: jnp.max(x) - jnp.min(x),
+    "abs_sum": lambda x: jnp.abs(x).sum(),
+    "mean": lambda x: jnp.mean(x ** 2),
+    "exp_cos": lambda x: jnp.exp(-x[0] ** 2) * jnp.cos(3.0 * x[1]),
+    "arctan2": lambda x: jnp.arctan2(x[1], x[0]),
+    "sqrt_safe": lambda x: jnp.sqrt(jnp.maximum(1.0 - x[2] ** 2, 0.0)),
+    "reflect": lambda x: x - 2.0 * jnp.dot(x, A) * A,
+    "concatenate": lambda x: jnp.concatenate([x, x[:1]]) @ jnp.ones(4),
+    "outer_trace": lambda x: jnp.trace(jnp.outer(x, A)),
+    "jitted_helper": jax.jit(lambda x: jnp.sum(jnp.sin(x) * A)),
+    "cast_int": lambda x: (x[0] > 0).astype(jnp.float32) + jnp.floor(x[1] * 4.0),
+    "pytree": lambda x: {"value": x @ A, "direction": x / jnp.linalg.norm(x)},
+}
+
+
+@pytest.fixture(scope="module")
+def points():
+    return jax.random.normal(jax.random.key(1), (N, 3), jnp.float32)
+
+
+def _lanes(points):
+    return tuple(points[:, j] for j in range(points.shape[1]))
+
+
+@pytest.mark.parametrize("name", sorted(FAST))
+def test_user_programs_stay_on_the_fast_path(name, points):
+    """strict=True raises on any fallback: each program (and its gradient) runs on the lanes and
+    equals vmap."""
+    fn = FAST[name]
+    got = jax.jit(lane_map(fn, N, strict=True))(_lanes(points))
+    expected = jax.vmap(fn)(points)
+    jax.tree_util.tree_map(lambda g, e: np.testing.assert_allclose(g, e, rtol=2e-6, atol=2e-6), got, expected)
+
+    def total(mapper, scale):
+        leaves = jax.tree_util.tree_leaves(mapper(lambda x: fn(x * scale)))
+        return sum(jnp.sum(leaf) for leaf in leaves)
+
+    g_lanes = jax.grad(lambda s: total(lambda f: lane_map(f, N, strict=True)(_lanes(points)), s))(1.5)
+    g_vmap = jax.grad(lambda s: total(lambda f: jax.vmap(f)(points), s))(1.5)
+    np.testing.assert_allclose(g_lanes, g_vmap, rtol=2e-5, atol=2e-5)
+
+
+@pytest.mark.parametrize("fn, what", [
+    (lambda x: A[jnp.clip((x[0] * 3).astype(jnp.int32), 0, 2)], "dynamic_slice|gather"),
+    (lambda x: jnp.sort(x), "sort"),
+    (lambda x: jnp.sum(jnp.sin(jnp.outer(jnp.linspace(0.0, 1.0, 40), x)), axis=0), "MAX_LANES"),
+    (lambda x: jax.nn.relu(x), "custom_jvp_call"),
+])
+def test_strict_names_the_fallback_and_the_default_takes_it(fn, what, points):
+    with pytest.raises(LaneFallback, match=what):
+        lane_map(fn, N, strict=True)(_lanes(points))
+    np.testing.assert_allclose(lane_map(fn, N)(_lanes(points)), jax.vmap(fn)(points), rtol=2e-6, atol=2e-6)
+
+
+def test_an_error_inside_a_rule_propagates(monkeypatch, points):
+    """A rule that raises is a bug to see, not a reason to fall back to vmap silently."""
+
+    def broken(ev, eqn, inputs):
+        raise ValueError("broken rule")
+
+    monkeypatch.setitem(lanes._RULES, lax.dot_general_p, broken)
+    with pytest.raises(ValueError, match="broken rule"):
+        lane_map(lambda x: x @ A, N)(_lanes(points))
+
+
+# Ties: JAX's reduce_max/reduce_min derivative splits the tangent evenly among the elements equal
+# to the result; elementwise max/min split 0.5/0.5. The parameter p = 1 makes the ties.
+TIES = {
+    "issue_three_way": lambda x, p: jnp.max(jnp.stack([x[0] * p, x[0] * p ** 2, x[0] * p ** 3])),
+    "two_way": lambda x, p: jnp.max(jnp.stack([x[0] * p, x[0] * p ** 2, x[0] - 10.0])),
+    "three_way_min": lambda x, p: jnp.min(jnp.stack([x[1] * p ** 3, x[1] * p, x[1] * p ** 2])),
+    "four_way_axis": lambda x, p: jnp.max(jnp.stack([x * p, x * p ** 2, x * p ** 3, x * p ** 4]), axis=0) @ A,
+    "tied_in_the_points": lambda x, p: jnp.max(jnp.stack([x[0], x[0], x[1]]) * p ** jnp.arange(3.0)),
+    "elementwise_maximum": lambda x, p: jnp.maximum(x[0] * p, x[0] * p ** 2) + jnp.minimum(x[1] * p ** 3, x[1]),
+    "amax_of_a_matrix": lambda x, p: jnp.max(jnp.outer(x, jnp.array([p, p ** 2]))),
+}
+
+
+@pytest.mark.parametrize("name", sorted(TIES))
+def test_max_and_min_follow_jax_derivative_at_ties(name):
+    """Values, reverse- and forward-mode derivatives (in the parameter and in the points) equal
+    vmap's at exact ties, on the lanes (strict)."""
+    fn = TIES[name]
+    x = jax.random.normal(jax.random.key(2), (512, 3), jnp.float32)
+    x = x.at[:, 1].set(jnp.where(jnp.arange(512) % 2 == 0, x[:, 0], x[:, 1]))  # ties between coordinates
+
+    def total(mapper, p, pts):
+        return jnp.sum(mapper(lambda v: fn(v, p), pts))
+
+    by_vmap = lambda f, pts: jax.vmap(f)(pts)  # noqa: E731
+    by_lanes = lambda f, pts: lane_map(f, 512, strict=True)(_lanes(pts))  # noqa: E731
+    np.testing.assert_allclose(total(by_lanes, 1.0, x), total(by_vmap, 1.0, x), rtol=1e-6)
+    g_lanes = jax.grad(total, argnums=(1, 2))(by_lanes, 1.0, x)
+    g_vmap = jax.grad(total, argnums=(1, 2))(by_vmap, 1.0, x)
+    for g, e in zip(g_lanes, g_vmap):
+        np.testing.assert_allclose(g, e, rtol=1e-5, atol=1e-5)
+    t_lanes = jax.jvp(lambda p: total(by_lanes, p, x), (1.0,), (1.0,))[1]
+    t_vmap = jax.jvp(lambda p: total(by_vmap, p, x), (1.0,), (1.0,))[1]
+    np.testing.assert_allclose(t_lanes, t_vmap, rtol=1e-5)
+
+
+def test_the_issue_example_at_a_three_way_tie():
+    """jnp.max of x0 p, x0 p^2, x0 p^3 at p = 1: the derivative is x0 (1 + 2 + 3) / 3 = 2 x0 where
+    x0 > 0 (JAX's even split), not the pairwise chain's x0 (1/4 + 2/4 + 3/2) = 2.25 x0."""
+    x0 = jax.random.uniform(jax.random.key(3), (512,), jnp.float32, 0.1, 1.0)
+    fn = lambda x, p: jnp.max(jnp.stack([x[0] * p, x[0] * p ** 2, x[0] * p ** 3]))  # noqa: E731
+    grad = jax.grad(lambda p: jnp.sum(lane_map(lambda v: fn(v, p), 512, strict=True)((x0,))))(1.0)
+    np.testing.assert_allclose(grad, 2.0 * jnp.sum(x0), rtol=1e-5)
+    np.testing.assert_allclose(grad, jax.grad(lambda p: jnp.sum(jax.vmap(lambda v: fn(v[None], p))(x0)))(1.0),
+                               rtol=1e-6)
+
+
+def test_integer_max_reduction_stays_exact(points):
+    fn = lambda x: jnp.max((x * 8).astype(jnp.int32)) - jnp.min((x * 8).astype(jnp.int32))  # noqa: E731
+    np.testing.assert_array_equal(lane_map(fn, N, strict=True)(_lanes(points)), jax.vmap(fn)(points))
