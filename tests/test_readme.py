@@ -58,3 +58,17 @@ def test_ci_runs_the_readme_test_command():
                    for line in block.splitlines() if "pytest" in line)
     ci = (README.parent / ".ci" / "run").read_text().splitlines()
     assert command in ci, (command, ci)
+
+
+def test_the_readme_names_the_floors_that_ci_tests():
+    """The README's supported versions are pyproject.toml's floors, the ones `.ci/run` pins in its second step."""
+    import tomllib
+
+    project = tomllib.loads((README.parent / "pyproject.toml").read_text())["project"]
+    floors = dict(requirement.split(">=") for requirement in project["dependencies"])
+    supported = next(paragraph for paragraph in README.read_text().split("\n\n") if paragraph.startswith("Supported:"))
+    assert f"Python {project['requires-python'].removeprefix('>=')}," in supported, supported
+    assert f"JAX {floors['jax']} and NumPy {floors['numpy']} or newer" in supported, supported
+    assert f"jaxlib {floors['jax']}" in supported, supported
+    assert set(floors) == {"jax", "numpy"}, floors  # a new dependency gets its floor named in the README too
+    assert "pyproject.toml" in (README.parent / ".ci" / "run").read_text()  # the pins are read from it
