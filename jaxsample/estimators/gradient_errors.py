@@ -1,4 +1,4 @@
-"""Gradients with error bars: `estimate_grad` and `expectation_grad` (issue 15, part 1).
+"""Gradients with error bars: `estimate_grad` and `expectation_grad`.
 
 `jax.grad` of an estimate returns a bare number. Its noise is the spread of the per-sample
 gradients whose mean it is: with Y_i(θ) the per-sample value (`integrand_values` for ∫ f dμ,
@@ -32,10 +32,10 @@ from ..samplers.base import check_unbatched, checked
 from .._core.params import check_choice
 from .engine import run_stream
 from .integrand import integrand_layout, require_real
-from .plain import broadcast_like, integrand_values
+from .plain import integrand_values
 from .result import Estimate
 from .boundary import boundary_dims
-from .gradients import _GRADIENTS, _detached_log_pdf, expectation, expectation_values, uniform_dims
+from .gradients import _GRADIENTS, expectation, expectation_values, score_surrogate, score_terms, uniform_dims
 
 __all__ = ["estimate_grad", "expectation_grad"]
 
@@ -97,9 +97,11 @@ def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: j
     make(θ)`, θ = `params` (a pytree of floats).
 
     `gradient`: "pathwise", "score" or "measure_valued" (PhongLobe's exponent; as in
-    `jaxsample.expectation`); `baseline`, score only: a constant for "score" (held constant). The leave-one-out baseline couples the samples (each one's baseline
-    is the mean of the others), so its gradient is not a mean of independent per-sample terms:
-    use `jax.grad` of `expectation(..., baseline="leave_one_out")` for its value (ValueError here).
+    `jaxsample.expectation`). `baseline`, score only: a constant (held constant), or
+    "leave_one_out", whose gradient is that of `expectation(..., baseline="leave_one_out")`: one
+    pass over the samples gives the mean ḡ of g, a second streams the per-sample terms
+    ∇g_i + n/(n-1) (g_i - ḡ) ∇log p_i on the same samples (their stderr is the large-n one: the
+    terms share ḡ). `uniforms`, `mesh`, `chunk_size`, `dtype`: as in `estimate`.
     """
     check_choice("expectation_grad", "gradient", gradient, _GRADIENTS)
     if baseline is not None and gradient != "score":
@@ -133,10 +135,7 @@ def _leave_one_out(make, params, key, n, common) -> Estimate:
     scale = n / (n - 1.0)
 
     def point_value(g, sampler, row):
-        x = jax.lax.stop_gradient(sampler.warp(row[None]))
-        gx = jax.vmap(g)(x)
-        log_p = _detached_log_pdf(sampler, x)
-        score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
-        return (gx + score * jax.lax.stop_gradient(scale * (gx - mean_g)))[0]
+        gx, score = score_terms(g, sampler, row[None])
+        return score_surrogate(gx, score, scale * (gx - mean_g))[0]
 
     return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", **common)

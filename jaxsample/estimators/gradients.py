@@ -76,6 +76,23 @@ def _detached_log_pdf(sampler, x):
     return jnp.where(finite, jnp.where(finite, log_p, 0.0), 0.0)
 
 
+def score_terms(g, sampler, u):
+    """(g(x̄), Δ) for the score function at the samples x̄ = sg(T(u; θ)) of a (count, dims) block:
+    Δ = log p(x̄) - sg(log p(x̄)), of value 0 and derivative ∇θ log p(x̄), shaped to scale g's
+    values. Every score-function surrogate is g(x̄) + Δ · sg(c) for a coefficient c: (g - b) with a
+    constant baseline, n/(n-1) (g - ḡ) with the leave-one-out one."""
+    x = jax.lax.stop_gradient(sampler.warp(u))
+    gx = jax.vmap(g)(x)
+    log_p = _detached_log_pdf(sampler, x)
+    return gx, broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
+
+
+def score_surrogate(gx, score, coefficient):
+    """g(x̄) + Δ · sg(coefficient): the value g(x̄), the derivative ∇g(x̄) + coefficient ∇ log p(x̄)
+    (`score_terms` gives g(x̄) and Δ)."""
+    return gx + score * jax.lax.stop_gradient(coefficient)
+
+
 def uniform_dims(sampler, gradient: str) -> int:
     """Uniforms per sample for `gradient`: the sampler's, one more for "measure_valued"."""
     return sampler.uniform_dims + (1 if gradient == "measure_valued" else 0)
@@ -161,12 +178,8 @@ def _surrogate_values(g, sampler, u, gradient, baseline):
         return jax.vmap(g)(sampler.warp(u))
     if gradient == "measure_valued":
         return _measure_valued_values(g, sampler, u)
-    x = jax.lax.stop_gradient(sampler.warp(u))
-    gx = jax.vmap(g)(x)
-    log_p = _detached_log_pdf(sampler, x)
-    score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
-    centred = gx if baseline is None else gx - baseline
-    return gx + score * jax.lax.stop_gradient(centred)
+    gx, score = score_terms(g, sampler, u)
+    return score_surrogate(gx, score, gx if baseline is None else gx - baseline)
 
 
 @compiled_entry("g", "n", "gradient", "uniforms", "mesh", "chunk_size", "dtype")
@@ -233,10 +246,7 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
     # Leave-one-out: stream the three means (g, Δ·sg(g), Δ), Δ = log p - sg(log p) (value 0), and
     # combine; the value is mean(g) exactly, the gradient the leave-one-out estimator.
     def stacked_fn(u):
-        x = jax.lax.stop_gradient(sampler.warp(u))
-        gx = jax.vmap(g)(x)
-        log_p = _detached_log_pdf(sampler, x)
-        score = broadcast_like(log_p - jax.lax.stop_gradient(log_p), gx)
+        gx, score = score_terms(g, sampler, u)
         return jnp.stack([gx, score * jax.lax.stop_gradient(gx), score * jnp.ones_like(gx)], axis=1)
 
     est = run_stream(stacked_fn, dims, key, n, out_shape=(3,) + out_shape, **common)
