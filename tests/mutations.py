@@ -89,7 +89,7 @@ MUTATIONS = [
        "tests/estimators/test_calibration.py::test_stderr_matches_the_spread_of_estimates_over_keys[stratified]"),
       "Sobol'/stratified stderr 4x too large"),
     M("shade-heuristic", "jaxsample/scene/direct.py",
-      'exponent = 1 if heuristic == "balance" else 2',
+      'exponent = heuristic_exponent("shade", heuristic, beta)',
       "exponent = 1",
       ("tests/scene/test_scene.py::test_shade_mis_weights_are_the_documented_heuristic_on_the_same_samples",),
       "shade uses the balance heuristic where the power heuristic is documented"),

@@ -1,9 +1,13 @@
 """Multiple importance sampling: several samplers, each with its own count, combined by the balance
-or power heuristic (Veach & Guibas 1995; Veach 1997, ch. 9), on the streaming engine."""
+or power heuristic (Veach & Guibas 1995; Veach 1997, ch. 9), on the streaming engine.
+
+The weights and the heuristic's options (`heuristic`, `beta`: `heuristic_exponent`) are shared with
+the other MIS path, `scene.shade(..., strategy="mis")`."""
 
 from __future__ import annotations
 
 import functools
+import math
 from typing import Callable, Sequence
 
 import jax
@@ -22,7 +26,9 @@ from .plain import _detach, broadcast_like, check_mode
 from .result import Estimate
 from .boundary import refuse_edges
 
-__all__ = ["estimate_mis", "heuristic_weights"]
+__all__ = ["estimate_mis", "heuristic_weights", "heuristic_exponent", "HEURISTICS"]
+
+HEURISTICS = ("balance", "power")
 
 
 def heuristic_weights(densities: Sequence[jax.Array], exponent: float) -> list[jax.Array]:
@@ -39,6 +45,29 @@ def heuristic_weights(densities: Sequence[jax.Array], exponent: float) -> list[j
     powered = [(q / scale) ** exponent for q in densities]
     total = sum(powered)
     return [safe_div(p, total) for p in powered]
+
+
+def heuristic_exponent(owner: str, heuristic: str, beta=None):
+    """The exponent β of the MIS weights (q_k^β / Σ_j q_j^β) for `heuristic` and `beta`, the options
+    of every MIS path: 1 for "balance"; for "power", `beta` (default 2), a number > 0 or a traced
+    value. An integral concrete β is returned as an int, so that q ** 2 is a multiplication (q ** 2.0
+    would be lax.pow: exp and log). ValueError for another heuristic, a concrete β that is not a
+    finite number > 0, or a β other than 1 with "balance" (which is β = 1)."""
+    check_choice(owner, "heuristic", heuristic, HEURISTICS)
+    concrete = isinstance(beta, (int, float, np.integer, np.floating))
+    if heuristic == "balance":
+        if beta is not None and not (concrete and float(beta) == 1.0):
+            raise ValueError(f"{owner}: parameter 'beta' applies to heuristic='power' (the balance heuristic is "
+                             f"beta = 1); got {beta!r}")
+        return 1
+    if beta is None:
+        return 2
+    if concrete:
+        if not (math.isfinite(float(beta)) and float(beta) > 0):
+            raise ValueError(f"{owner}: parameter 'beta' must be a finite number > 0; got {beta!r}")
+        if float(beta).is_integer():
+            return int(beta)
+    return beta
 
 
 def _check_samplers_agree(samplers) -> None:
@@ -61,12 +90,13 @@ def _check_samplers_agree(samplers) -> None:
 
 @compiled_entry("f", "counts", "heuristic", "beta", "uniforms", "mode", "chunk_size", "dtype", "mesh", tuples=("counts",))
 def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequence[int], *,
-                 heuristic: str = "balance", beta: float = 2.0, uniforms="random",
+                 heuristic: str = "balance", beta: float | None = None, uniforms="random",
                  mode: str = "attached", chunk_size: int | None = None, dtype=None, mesh=None) -> Estimate:
     """Multi-sample MIS: Σ_i (1/n_i) Σ_j w_i(x_ij) f(x_ij) / p_i(x_ij), x_ij ~ samplers[i].
 
     Weights (Veach 1997, eqs. 9.4 and 9.5), with q_k = n_k p_k(x):
-      "balance": w_i = q_i / Σ_k q_k;  "power": w_i = q_i^β / Σ_k q_k^β (β = `beta`, default 2).
+      "balance": w_i = q_i / Σ_k q_k;  "power": w_i = q_i^β / Σ_k q_k^β (β = `beta`, default 2; a
+      number > 0, concrete or traced; with "balance" only β = 1 applies).
     Both sum to 1 wherever some p_k > 0, so the estimate is unbiased. Each technique draws from
     its own key (split from `key`); techniques are independent, so stderr² = Σ_i stderr_i².
     All samplers must share a domain and measure. `mode="detached"` stops the gradient of the
@@ -75,7 +105,7 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     of real or complex arrays (the integrand rule of `integrand.py`): the result is then the same
     pytree of `Estimate`s. Each count is any concrete integer, as `n` of `estimate`.
     """
-    check_choice("estimate_mis", "heuristic", heuristic, ("balance", "power"))
+    exponent = heuristic_exponent("estimate_mis", heuristic, beta)
     check_mode("estimate_mis", mode)
     samplers = list(samplers)
     if isinstance(counts, (str, bytes)) or not hasattr(counts, "__iter__") or np.ndim(counts) == 0:
@@ -92,9 +122,6 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     samplers = [checked(s) for s in samplers]
     # The counts enter the weights as floats: a Python int beyond 2^31 overflows JAX's weak int32.
     counts = [float(c) for c in sizes]
-    exponent = 1 if heuristic == "balance" else beta
-    if isinstance(exponent, (int, float, np.integer, np.floating)) and float(exponent).is_integer():
-        exponent = int(exponent)  # q ** 2 is a multiplication; q ** 2.0 would be lax.pow (exp, log)
     dtype = resolve_float_dtype("estimate_mis", dtype)
     keys = jax.random.split(as_key(key, "estimate_mis"), len(samplers))
     layout = integrand_layout(f, samplers[0], dtype, "estimate_mis")

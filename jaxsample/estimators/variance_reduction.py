@@ -38,7 +38,7 @@ from .._core.numerics import safe_div, safe_sqrt
 __all__ = ["estimate_ratio", "estimate_antithetic", "estimate_control_variate"]
 
 
-def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, owner, h_name, why):
+def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, mesh, owner, h_name, why):
     """Estimate of (Y, Z, Y + Z) stacked on a new axis 0 of the value, Y = f/p packed by the
     integrand rule, Z = h/p (a real scalar, broadcast to Y's shape): the diagonal variances give
     Cov(Y_k, Z) for every component k; returns (est, var_y, var_z, cov, f's layout)."""
@@ -58,15 +58,16 @@ def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, ow
         z = jnp.broadcast_to(broadcast_like(z, y), y.shape)
         return jnp.stack([y, z, y + z], axis=1)
 
-    est = run_stream(values_fn, sampler.uniform_dims, key, n, uniforms=uniforms,
+    est = run_stream(values_fn, sampler.uniform_dims, key, n, uniforms=uniforms, mesh=mesh,
                      chunk_size=chunk_size, out_shape=(3,) + layout.out_shape, dtype=dtype, owner=owner)
     var_y, var_z, var_sum = est.variance[0], est.variance[1], est.variance[2]
     return est, var_y, var_z, 0.5 * (var_sum - var_y - var_z), layout
 
 
-@compiled_entry("f", "h", "n", "mode", "uniforms", "chunk_size", "dtype")
+@compiled_entry("f", "h", "n", "mode", "uniforms", "chunk_size", "dtype", "mesh")
 def estimate_ratio(f: Callable, h: Callable, sampler, key: jax.Array, n: int, *,
-                   mode: str = "attached", uniforms="random", chunk_size=None, dtype=None) -> Estimate:
+                   mode: str = "attached", uniforms="random", chunk_size=None, dtype=None,
+                   mesh=None) -> Estimate:
     """Self-normalized estimate of ∫f / ∫h: (Σ f/p) / (Σ h/p) over the same n samples.
 
     With h = π̃ an unnormalized density and f = φ π̃ this is self-normalized importance sampling
@@ -75,11 +76,11 @@ def estimate_ratio(f: Callable, h: Callable, sampler, key: jax.Array, n: int, *,
     consistent. stderr is the delta-method one, sqrt(Var(Y - R Z) / n) / |mean Z|. f may return a
     pytree of real or complex arrays (a ratio per real component: E_π of several quantities at
     once); h returns a real scalar. Use the "random" source (the delta-method variance assumes
-    independent points).
+    independent points). `mode`, `uniforms`, `chunk_size`, `dtype`, `mesh`: as in `jaxsample.estimate`.
     """
     refuse_edges("estimate_ratio", f, h)
     est, var_y, var_z, cov, layout = _paired_moments(
-        f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, "estimate_ratio", "h",
+        f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, mesh, "estimate_ratio", "h",
         "the denominator ∫h is one number")
     mean_y, mean_z = est.mean[0], est.mean[1]
     ratio = safe_div(mean_y, mean_z)
@@ -106,6 +107,7 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
     CosineHemisphere maps 1 - u to the reflected point, so a rotationally symmetric f gets ρ = 1.
     The stderr comes from the pair means (independent); `n` must be even (any concrete integer).
     f may return a pytree of real or complex arrays (the same pytree of `Estimate`s comes back).
+    `mode`, `uniforms`, `chunk_size`, `dtype`, `mesh`: as in `jaxsample.estimate`.
     """
     check_mode("estimate_antithetic", mode)
     check_unbatched(sampler, "estimate_antithetic")
@@ -130,21 +132,21 @@ def _antithetic(f, sampler, key, n, mode, uniforms, chunk_size, dtype, mesh, lay
     return est.per_evaluation(n)
 
 
-@compiled_entry("f", "g", "n", "mode", "uniforms", "chunk_size", "dtype")
+@compiled_entry("f", "g", "n", "mode", "uniforms", "chunk_size", "dtype", "mesh")
 def estimate_control_variate(f: Callable, g: Callable, g_integral, sampler, key: jax.Array, n: int,
                              *, mode: str = "attached", uniforms="random", chunk_size=None,
-                             dtype=None) -> Estimate:
+                             dtype=None, mesh=None) -> Estimate:
     """∫ f dμ as mean(Y) - c (mean(Z) - G), Y = f/p, Z = g/p, G = ∫ g dμ known exactly.
 
     c = Cov(Y, Z) / Var(Z) is the variance-minimizing coefficient, estimated from the same samples
     (so the estimate carries an O(1/n) bias); the residual variance is Var(Y)(1 - ρ²), and the
     stderr is sqrt((Var Y - Cov²/Var Z) / n). f may return a pytree of real or complex arrays (a
     coefficient per real component); g returns a real scalar, with the real `g_integral`. Use the
-    "random" source.
+    "random" source. `mode`, `uniforms`, `chunk_size`, `dtype`, `mesh`: as in `jaxsample.estimate`.
     """
     refuse_edges("estimate_control_variate", f, g)
     est, var_y, var_z, cov, layout = _paired_moments(
-        f, g, sampler, key, n, mode, uniforms, chunk_size, dtype, "estimate_control_variate", "g",
+        f, g, sampler, key, n, mode, uniforms, chunk_size, dtype, mesh, "estimate_control_variate", "g",
         "a control variate is one real function with a known integral")
     coefficient = safe_div(cov, var_z)
     mean = est.mean[0] - coefficient * (est.mean[1] - g_integral)

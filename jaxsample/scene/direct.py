@@ -39,7 +39,7 @@ parameter of the BRDF and of these lights; `shade_grad` gives the gradient with 
 error, the boundary term's variance included (it rides on the same evaluation).
 
 The term is a custom JVP whose value is never computed: an estimate that is not differentiated
-costs what it did. Lights without `silhouette` (`EnvironmentMap`, whose texel edges are fixed in
+costs what it would cost without the term. Lights without `silhouette` (`EnvironmentMap`, whose texel edges are fixed in
 ω, and user lights) have edges `shade` cannot sample; a gradient that would cross them is refused
 with a ValueError when it is asked for (the BRDF's parameters in attached "brdf"/"mis", a user
 light's own parameters outside attached light sampling of that light alone).
@@ -62,7 +62,7 @@ from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from .._core.params import check_choice, resolve_float_dtype
 from ..estimators.engine import run_stream
-from ..estimators.mis import heuristic_weights
+from ..estimators.mis import heuristic_exponent, heuristic_weights
 from ..estimators.plain import check_mode
 from ..estimators.result import Estimate
 from ..samplers.frame import Frame
@@ -231,8 +231,9 @@ def _with_boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf,
     silhouettes' boundary term for `strategy` and `mode`.
 
     A custom JVP whose value is `values` itself: an estimate that is never differentiated runs
-    exactly the program it ran before (the rim seed is dead code there, and XLA drops it; adding a
-    term of value 0 instead cost 14-27 % of the value path, which XLA cannot simplify away), and a
+    exactly the program without the term (the rim seed is dead code there, and XLA drops it; a
+    term of value 0 added to the values would cost 14-27 % of the value path, which XLA cannot
+    simplify away), and a
     gradient that no term here can make unbiased is refused when it is asked for (`_refuse`), not
     whenever `shade` runs."""
     return values
@@ -300,10 +301,10 @@ def _boundary_jvp(strategy, mode, exponent, rims, primals, tangents):
 _with_boundary_term.defjvp(_boundary_jvp, symbolic_zeros=True)
 
 
-@compiled_entry("n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
+@compiled_entry("n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype")
 def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: str = "mis",
-          mode: str = "attached", heuristic: str = "power", uniforms="random", mesh=None,
-          chunk_size: int | None = None, dtype=None) -> Estimate:
+          mode: str = "attached", heuristic: str = "power", beta: float | None = None, uniforms="random",
+          mesh=None, chunk_size: int | None = None, dtype=None) -> Estimate:
     """Outgoing radiance L_o(point, ω_o) = ∫ f_r L_i cos⁺θ_i dω_i under `lights`, no occluders.
 
     Args:
@@ -314,21 +315,25 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
       lights: one light or a sequence of them (`ConstantSky`, `SphereLight`, `TriangleLight`,
         `EnvironmentMap`, or anything with `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)` and
         `radiance_from(point, ω)` in world space).
-      key: a typed PRNG key, consumed once.
+      key: a JAX key (`jax.random.key`, or a legacy `jax.random.PRNGKey`: the same stream), consumed
+        once.
       n: radiance evaluations (any concrete integer, as in `jaxsample.estimate`; even for "mis",
         which draws n/2 of each strategy).
       strategy: "brdf", "light" or "mis" (default).
       mode: "attached" (default) or "detached"; applies to samples, densities and MIS weights
         together (see the module docstring for which is unbiased for which parameter).
-      heuristic: "power" (β = 2, default) or "balance", for "mis".
+      heuristic, beta: the MIS weights of "mis", as in `jaxsample.estimate_mis`: "power" (default;
+        β = `beta`, default 2, a concrete number > 0) or "balance". `beta` with another strategy is
+        a ValueError.
       uniforms, mesh, chunk_size, dtype: as in `jaxsample.estimate`.
 
     Returns: an `Estimate` of L_o (a scalar); `n` is the evaluation count and `variance` the
     per-evaluation variance, so strategies compare at equal cost.
     """
-    n = _check_options("shade", strategy, mode, heuristic, n)
+    n = _check_options("shade", strategy, mode, heuristic, beta, n)
     dtype = resolve_float_dtype("shade", dtype)
-    values_fn, dims, count = _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype)
+    values_fn, dims, count = _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype,
+                                      beta=beta)
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh,
                      chunk_size=chunk_size, out_shape=(), dtype=dtype, owner="shade")
     if count == n:
@@ -336,24 +341,29 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     return est.per_evaluation(n)  # one pair costs two evaluations
 
 
-def _check_options(owner, strategy, mode, heuristic, n):
+def _check_options(owner, strategy, mode, heuristic, beta, n):
     check_choice(owner, "strategy", strategy, STRATEGIES)
     check_mode(owner, mode)
-    check_choice(owner, "heuristic", heuristic, ("power", "balance"))
+    if beta is not None and not isinstance(beta, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{owner}: parameter 'beta' must be a concrete number (it selects the program of the "
+                         f"weights and of their boundary terms); got {type(beta).__name__}")
+    heuristic_exponent(owner, heuristic, beta)
+    if beta is not None and strategy != "mis":
+        raise ValueError(f"{owner}: parameter 'beta' applies to strategy='mis' only; got strategy={strategy!r}")
     n = check_count(owner, "n", n, minimum=2)
     if strategy == "mis" and n % 2:
         raise ValueError(f"{owner}: parameter 'n' must be even for strategy 'mis' (n/2 of each strategy); got {n}")
     return n
 
 
-def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype, boundary=True):
+def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype, boundary=True, beta=None):
     """(values_fn, uniform dims, count): the per-evaluation (per-pair for "mis") values of `shade`,
     interior estimate plus the silhouettes' boundary term (value 0), from (count, dims) uniforms.
-    `boundary=False` leaves the term out: the old, biased gradient, kept only so that the report
-    can measure what the term costs."""
+    `boundary=False` leaves the term out (a biased gradient), only so that the report can measure
+    what the term costs."""
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
     shading = _Shading(point, normal, wo, brdf, _as_tuple(lights), mode)
-    exponent = 1 if heuristic == "balance" else 2
+    exponent = heuristic_exponent("shade", heuristic, beta)
 
     def brdf_values(u, weighted):
         wi_local, radiance, pdf, light_pdf = shading.brdf_sample(u)
@@ -410,10 +420,10 @@ def _rim_uniforms(seed, rims):
     return jnp.stack(columns, axis=-1) if columns else jnp.zeros(seed.shape + (0,), seed.dtype)
 
 
-@compiled_entry("make", "n", "strategy", "mode", "heuristic", "uniforms", "mesh", "chunk_size", "dtype")
+@compiled_entry("make", "n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype")
 def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, strategy: str = "mis",
-               mode: str = "attached", heuristic: str = "power", uniforms="random", mesh=None,
-               chunk_size: int | None = None, dtype=None) -> Estimate:
+               mode: str = "attached", heuristic: str = "power", beta: float | None = None, uniforms="random",
+               mesh=None, chunk_size: int | None = None, dtype=None) -> Estimate:
     """∇θ of `shade`'s estimate with its standard error; `(point, normal, wo, brdf, lights) =
     make(θ)`, θ = `params` (a pytree of floats: an exponent, a light's centre, vertices ...).
 
@@ -422,21 +432,23 @@ def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, 
     gradients, streamed in constant memory like `jaxsample.estimate_grad`, with the silhouettes'
     boundary term inside each of them. Options as in `shade`.
     """
-    return _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype)
+    return _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype,
+                       beta=beta)
 
 
-def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype, boundary=True):
-    n = _check_options("shade_grad", strategy, mode, heuristic, n)
+def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype, boundary=True,
+                beta=None):
+    n = _check_options("shade_grad", strategy, mode, heuristic, beta, n)
     flat, unravel = ravel_pytree(params)
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"shade_grad: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
     dtype = resolve_float_dtype("shade_grad", dtype)
-    _, dims, count = _program(*make(params), strategy, mode, heuristic, n, dtype, boundary)
+    _, dims, count = _program(*make(params), strategy, mode, heuristic, n, dtype, boundary, beta)
 
     def values_fn(u):
         def one(row):
             return jax.grad(lambda theta: _program(*make(unravel(theta)), strategy, mode, heuristic, n,
-                                                   dtype, boundary)[0](row[None])[0])(flat)
+                                                   dtype, boundary, beta)[0](row[None])[0])(flat)
         return jax.vmap(one)(u)
 
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,

@@ -181,3 +181,29 @@ def test_estimate_mis_accepts_a_traced_beta():
                                                heuristic="power", beta=b).mean)(2.0)
     concrete = js.estimate_mis(f, samplers, key, [1024, 1024], heuristic="power", beta=2.0).mean
     np.testing.assert_allclose(traced, concrete, rtol=1e-5)
+
+
+def test_both_mis_paths_check_heuristic_and_beta_alike():
+    """`estimate_mis` and `scene.shade(strategy="mis")` share `heuristic` and `beta`, checked by one
+    rule: beta is the power heuristic's exponent (balance is beta = 1), a number > 0."""
+    from jaxsample import scene
+
+    samplers = [js.CosineHemisphere(), js.PhongLobe(3.0)]
+    lit = (jnp.zeros(3), jnp.array([0.0, 0.0, 1.0]), jnp.array([0.0, 0.0, 1.0]), scene.Lambertian(0.5),
+           scene.ConstantSky(1.0))
+    calls = {"estimate_mis": lambda **kw: estimate_mis(cos3, samplers, jax.random.key(41), [64, 64], **kw),
+             "shade": lambda **kw: scene.shade(*lit, jax.random.key(43), 64, **kw)}
+    for owner, call in calls.items():
+        with pytest.raises(ValueError, match=rf"^{owner}: parameter 'beta' applies to heuristic='power'"):
+            call(heuristic="balance", beta=3.0)
+        with pytest.raises(ValueError, match=rf"^{owner}: parameter 'beta' must be a finite number > 0"):
+            call(heuristic="power", beta=-1.0)
+        with pytest.raises(ValueError, match=rf"^{owner}: parameter 'heuristic' must be one of"):
+            call(heuristic="cutoff")
+    with pytest.raises(ValueError, match=r"^shade: parameter 'beta' applies to strategy='mis' only"):
+        calls["shade"](strategy="brdf", beta=2.0)
+    # beta = 2 is the power heuristic's default, in both paths: the same program, the same bits.
+    assert float(calls["estimate_mis"](heuristic="power", beta=2.0).mean) == float(
+        calls["estimate_mis"](heuristic="power").mean)
+    assert float(calls["shade"](beta=2.0).mean) == float(calls["shade"]().mean)
+

@@ -246,18 +246,20 @@ def test_a_wrong_density_is_detected():
         assert abs(_z(est, reference)) > 2 * Z_LIMIT, strategy
 
 
-@pytest.mark.parametrize("heuristic", [None, "power", "balance"])
+@pytest.mark.parametrize("heuristic", [None, "power", "balance", "power-beta-3"])
 def test_shade_mis_weights_are_the_documented_heuristic_on_the_same_samples(heuristic):
     """`shade(strategy="mis")` against a hand computation from the same points (the stream of
     `key`: pair i takes uniforms (u0, u1) for the BRDF sample and (u2, u3) for the light sample):
-    Y = w_b f/p_b + w_l f/p_l with w_s = p_s^β / (p_b^β + p_l^β), β = 2 for "power" (the default)
-    and 1 for "balance". Deterministic (no FFR): shade and the hand value agree to float32
-    rounding (rtol 1e-5), and on these samples the other heuristic is more than 100x that away."""
+    Y = w_b f/p_b + w_l f/p_l with w_s = p_s^β / (p_b^β + p_l^β), β = 2 for "power" (the default),
+    `beta` when given (the option of `estimate_mis`) and 1 for "balance". Deterministic (no FFR):
+    shade and the hand value agree to float32 rounding (rtol 1e-5), and on these samples the other
+    heuristic is more than 100x that away."""
     brdf = scene.Phong(20.0, 0.9)
     light = _mirror_offset_light(0.1, 0.2, 2.0)
     wo, n = GLOSSY_WO, 1 << 12
     key = jax.random.key(23)
-    options = {} if heuristic is None else {"heuristic": heuristic}
+    options = ({} if heuristic is None else {"heuristic": "power", "beta": 3.0} if heuristic == "power-beta-3"
+               else {"heuristic": heuristic})
     est = jax.jit(lambda k: scene.shade(POINT, NORMAL, wo, brdf, light, k, n, **options))(jax.random.clone(key))
 
     u = js.uniforms.uniform_block("random", key, 0, n // 2, 4)
@@ -281,7 +283,7 @@ def test_shade_mis_weights_are_the_documented_heuristic_on_the_same_samples(heur
              + np.where(pdf_l > 0, weight(pdf_l, brdf_pdf_l) * value_l / np.where(pdf_l > 0, pdf_l, 1), 0))
         return float(np.mean(y))
 
-    beta = 1.0 if heuristic == "balance" else 2.0
+    beta = 1.0 if heuristic == "balance" else 3.0 if heuristic == "power-beta-3" else 2.0
     expected, other = by_hand(beta), by_hand(3.0 - beta)
     np.testing.assert_allclose(float(est.mean), expected, rtol=1e-5)
     assert abs(other - expected) > 100 * 1e-5 * abs(expected), (other, expected)
