@@ -1,12 +1,15 @@
 """Public estimators run as one compiled program, also when they are called outside `jax.jit`.
 
-Called eagerly, an estimator's Python code ran op by op: every small operation around its loop
-(turning the key into seed words, merging the tail chunk, the double-float finish) was a program
-of its own, compiled on first use, and `jax.grad` of an eager `estimate` compiled 158 of them
-(6 s on 2 cores) where one forward and one backward program do. `compiled_entry` wraps a public
-function in `jax.jit`: the arguments that fix the program (the integrand, `n`, the source, the
-mode, the mesh, ...) are static, everything else (samplers, parameters, keys) is traced, so a
-second call with the same integrand and new parameter values or keys reuses the program.
+Called eagerly without it, an estimator's Python code runs op by op: every small operation around
+its loop (turning the key into seed words, merging the tail chunk, the double-float finish) is a
+program of its own, compiled on first use, and `jax.grad` of an eager `estimate` compiles 158 of
+them (6 s on 2 cores) where one forward and one backward program do. `compiled_entry` wraps a
+public function in `jax.jit`: the arguments that fix the program (the integrand, `n`, the source,
+the mode, the mesh, ...) are static, everything else (samplers, parameters, keys) is traced, so a
+second call with the same integrand and new parameter values or keys reuses the program. Every
+public estimator is such an entry: `estimate`, `expectation`, `estimate_mis`, `estimate_ratio`,
+`estimate_antithetic`, `estimate_control_variate`, `estimate_grad`, `expectation_grad`,
+`estimate_until`, `scene.shade` and `scene.shade_grad`.
 
 Called eagerly, the estimates it returns are checked (`estimators.diagnostics.warn_if_unreliable`):
 an unreliable one emits an `UnreliableEstimateWarning`. Inside an enclosing `jit`, `vmap` or `grad`

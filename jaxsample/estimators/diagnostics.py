@@ -60,10 +60,14 @@ class UnreliableEstimateWarning(UserWarning):
     """An estimate whose standard error (or mean) cannot be trusted; see `Estimate.diagnostics`."""
 
 
-def tail_size(n: int) -> int:
+def tail_size(n):
     """M, the number of tail values fitted for n samples: min(n/5, 3 √n, MAX_TAIL) (PSIS's rule,
-    capped so that the streamed top-k stays cheap)."""
-    return int(max(1, min(n // 5, math.ceil(3.0 * math.sqrt(n)), MAX_TAIL)))
+    capped so that the streamed top-k stays cheap), at least 1. An int for an int n; an int32
+    array for a traced count (`estimate_until`'s, known only at run time)."""
+    if isinstance(n, (int, np.integer)):
+        return int(max(1, min(n // 5, math.ceil(3.0 * math.sqrt(n)), MAX_TAIL)))
+    m = jnp.minimum(jnp.floor(n / 5.0), jnp.ceil(3.0 * jnp.sqrt(n)))
+    return jnp.clip(m, 1, MAX_TAIL).astype(jnp.int32)
 
 
 def _pair_merge(a1, a2, b1, b2):
@@ -214,7 +218,9 @@ def verdict(mean, stderr, khat, nonzero, n, gradient: bool = False) -> jax.Array
         nonzero = jnp.maximum(nonzero.real, nonzero.imag)
     else:
         heavy = khat >= KHAT_VARIANCE
-    count = nonzero * jnp.asarray(n, nonzero.dtype)
+    n = jnp.asarray(n, jnp.result_type(nonzero))
+    n = n.reshape(n.shape + (1,) * (jnp.ndim(nonzero) - n.ndim))   # a batch's n_used, one per member
+    count = nonzero * n
     enough = count >= required_nonzero(n) - 0.5
     if gradient:
         enough = enough | (count == 0)
@@ -227,7 +233,12 @@ def _problems(est) -> list[str]:
         leaves = [np.ravel(np.asarray(leaf)) for leaf in jax.tree_util.tree_leaves(field)]
         return np.concatenate(leaves) if leaves else np.zeros(0)
 
+    def counts_of(leaf):   # the sample count of every value: n, or a batch's own n_used per member
+        n = np.asarray(est.n, np.float64)
+        return np.broadcast_to(n.reshape(n.shape + (1,) * (np.ndim(leaf) - n.ndim)), np.shape(leaf))
+
     mean, stderr, khat, nonzero = (flat(getattr(est, name)) for name in ("mean", "stderr", "khat", "nonzero"))
+    n = flat(jax.tree_util.tree_map(counts_of, est.nonzero))
     if np.iscomplexobj(khat):
         khat = np.fmax(khat.real, khat.imag)
         nonzero = np.maximum(nonzero.real, nonzero.imag)
@@ -236,18 +247,19 @@ def _problems(est) -> list[str]:
     if not finite.all():
         reasons.append("the mean or its stderr is not finite (f returned inf or NaN, a parameter is "
                        "out of range, or the sum overflowed)")
-    n = float(np.asarray(est.n))
     counts = np.rint(nonzero * n)
-    required = float(required_nonzero(n))
+    required = np.asarray(required_nonzero(n), np.float64)
     gradient = getattr(est, "gradient", False)
-    if (finite & (counts == 0)).any() and not gradient:
-        reasons.append(f"all {n:.0f} values f/p are 0: either the integral is 0 or the sampler never "
+    empty = finite & (counts == 0)
+    if empty.any() and not gradient:
+        reasons.append(f"all {n[empty].max():.0f} values f/p are 0: either the integral is 0 or the sampler never "
                        "reaches where f is nonzero (orient or widen the proposal)")
     few = finite & (counts > 0) & (counts < required - 0.5)
     if few.any():
-        reasons.append(f"only {counts[few].min():.0f} of {n:.0f} values f/p are nonzero (at least {required:.0f} "
-                       "are needed to judge the estimate): the sampler rarely reaches where f is nonzero "
-                       "(orient or widen the proposal, or take more samples)")
+        worst = np.argmin(np.where(few, counts, np.inf))
+        reasons.append(f"only {counts[worst]:.0f} of {n[worst]:.0f} values f/p are nonzero (at least "
+                       f"{required[worst]:.0f} are needed to judge the estimate): the sampler rarely reaches where f "
+                       "is nonzero (orient or widen the proposal, or take more samples)")
     heavy = finite & (khat >= KHAT_VARIANCE)
     if heavy.any():
         worst = float(np.max(np.where(heavy, khat, -np.inf)))

@@ -3,7 +3,11 @@
 `run_stream` averages per-sample values over a counter-based uniform stream; `estimate(f, sampler,
 key, n)` (`plain.py`) draws x_i = sampler.warp(u_i) from a uniform source
 (`jaxsample.uniforms`), averages Y_i = f(x_i)/p(x_i) (0 where p = 0, in value and gradient) and
-returns an `Estimate` with the mean, its standard error and diagnostics.
+returns an `Estimate` with the mean, its standard error and diagnostics. Every estimator is built
+from the same pieces: `_chunk` (the moments of one chunk of the stream), `_merge`, `combine_devices`
+(the moments of a device mesh) and `finish` (mean, stderr with its floor, variance, ess, k-hat and
+the nonzero fraction from the moments), which `run_stream` calls once and `estimate_until`
+(`until.py`) after every chunk of its while loop.
 
 Streaming: the n samples are processed in chunks of `chunk_size` inside `lax.scan`, so memory does
 not grow with n. Sample indices have 64 bits (`jaxsample.uniforms.index`): a stream of more than
@@ -18,14 +22,14 @@ compensated (TwoSum: the rounding error of each addition is kept), and the sum o
 merged by Chan, Golub & LeVeque's pairwise update M2 = M2_a + M2_b + δ² n_a n_b / n (Chan et al.
 1979). For a constant integrand every chunk sum is exact and so is the mean, for any n. With
 replicates (Sobol', stratified) the per-replicate sums are kept in double-float (hi + lo,
-`jaxsample.doublefloat`), and every mean is divided in double-float before it is rounded: the
+`jaxsample._core.doublefloat`), and every mean is divided in double-float before it is rounded: the
 stderr is the spread of the replicate means, which for Sobol' points drops below a float32 ulp of
-the mean (it came out as 0 when the means were rounded first).
+the mean (means rounded first would give a stderr of 0).
 
 Speed: the per-sample work (warp, density, f) is evaluated on one array per coordinate
-(`jaxsample.lanes`), so XLA fuses it into one loop however f is written (`x @ a`, `jnp.sum(x * a)`,
+(`jaxsample._core.lanes`), so XLA fuses it into one loop however f is written (`x @ a`, `jnp.sum(x * a)`,
 components); the g points a generator call yields (two 2-d points per Philox block) are computed
-in that loop and stored once per chunk (`jaxsample.computed_once`), so the generator runs once
+in that loop and stored once per chunk (`jaxsample._core.computed_once`), so the generator runs once
 per block.
 
 Standard error: with independent points (the "random" source) it is sqrt(s²/n), s² the sample
@@ -113,7 +117,7 @@ def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape, bi
     count = first.shape[0] * g
     if replicates > 1:
         # Replicate means are compared with each other (their spread is the stderr), so they are
-        # summed in double-float: see jaxsample.doublefloat. Group q holds the points g b + q of
+        # summed in double-float: see jaxsample._core.doublefloat. Group q holds the points g b + q of
         # a chunk whose offset is a multiple of R (and g divides R): replicates q, q + g, ...
         width = replicates // g
         parts = [doublefloat.sum_axis0(y.reshape((count // replicates, width) + out_shape)) for y in groups]
@@ -169,13 +173,43 @@ def stderr_floor(sum_abs, count):
     return ROUNDING_ULPS * float(jnp.finfo(sum_abs.dtype).eps) * (sum_abs / count)
 
 
-def _finish(m: _Moments, count: int, replicates: int) -> Estimate:
+def _divide_by_count(x: tuple[jax.Array, jax.Array], count):
+    """(hi, lo) / count in double-float: `doublefloat.divide_by_int` for a Python int; for a traced
+    integer (`estimate_until`'s count, known only at run time) the same steps, with count split
+    as d_hi + d_lo at run time (d_lo from the unsigned difference, which does not overflow when
+    d_hi rounds up to 2^31)."""
+    if isinstance(count, int):
+        return doublefloat.divide_by_int(x, count)
+    hi, lo = x
+    dtype = hi.dtype
+    unsigned = jnp.uint32 if count.dtype.itemsize == 4 else jnp.uint64
+    d_hi = count.astype(dtype)
+    d_lo = jax.lax.bitcast_convert_type(count.astype(unsigned) - d_hi.astype(unsigned), count.dtype).astype(dtype)
+    q1 = hi / d_hi
+    if dtype != jnp.float32:
+        return doublefloat.two_sum(q1, ((hi - q1 * d_hi) - q1 * d_lo + lo) / d_hi)
+    p, e = doublefloat.two_prod(q1, d_hi)
+    r = (((hi - p) - e) + lo) - q1 * d_lo
+    return doublefloat.two_sum(q1, r / d_hi)
+
+
+def finish(m: _Moments, count, replicates: int, most: int | None = None) -> dict:
+    """The statistics of a stream from its moments: the one finishing step of every estimator
+    (`run_stream`, and `estimate_until` after its loop and at every stopping test).
+
+    `count`: the points summed, a Python int, or a traced integer array when the count is known
+    only at run time (`estimate_until`; `most` is then the largest it can be, which sizes the tail
+    the diagnostics fit). Returns the fields of `Estimate` that have f's shape (`mean`, `stderr`,
+    `variance`, `max_abs`, `ess`, `khat`, `nonzero`); the caller adds the count it reports.
+    """
+    static = isinstance(count, int)
+    dtype = m.m2.dtype
     # Every mean is formed in double-float (sums and compensations as hi + lo), divided before
     # it is rounded; with replicates the spread is taken from the hi + lo means, whose differences
     # are far below a float32 ulp of the mean once Sobol' points converge.
-    replicate_hi, replicate_lo = doublefloat.divide_by_int((m.sums, m.compensation), count // replicates)
+    replicate_hi, replicate_lo = _divide_by_count((m.sums, m.compensation), count // replicates)
     # n as a float: a Python int beyond 2^31 in array arithmetic overflows JAX's weak int32.
-    n = float(count)
+    n = float(count) if static else count.astype(dtype)
     total = doublefloat.sum_axis0(replicate_hi, leaf=1)
     mean_hi, mean_lo = doublefloat.divide_by_int(
         (total[0], total[1] + jnp.sum(replicate_lo, axis=0)), replicates)
@@ -185,7 +219,7 @@ def _finish(m: _Moments, count: int, replicates: int) -> Estimate:
     plain_total = jnp.sum(m.sums, axis=0)
     finite = jnp.all(jnp.isfinite(m.sums), axis=0)
     mean = jnp.where(finite, mean_hi + mean_lo, plain_total / n)
-    variance = m.m2 / max(n - 1, 1)
+    variance = m.m2 / (max(n - 1, 1) if static else jnp.maximum(n - 1.0, 1.0))
     if replicates == 1:
         stderr = safe_sqrt(variance / n)
     else:
@@ -196,9 +230,9 @@ def _finish(m: _Moments, count: int, replicates: int) -> Estimate:
     variance = jnp.where(finite, variance, jnp.inf)
     stderr = jnp.maximum(stderr, stderr_floor(m.sum_abs, n))
     stderr = jnp.where(finite, stderr, jnp.inf)
-    return Estimate(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
-                    khat=pareto_khat(largest(m.tail, tail_size(count) + 1), tail_size(count)), nonzero=m.nonzero / n,
-                    n=count, replicates=replicates)
+    keep = tail_size(count if most is None else most) + 1
+    return dict(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
+                khat=pareto_khat(largest(m.tail, keep), tail_size(count)), nonzero=m.nonzero / n)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -212,10 +246,25 @@ def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
 
     `values_fn` is elementwise over the points, so values_fn(u[None])[0] is its per-point form;
     `lanes.lane_map` evaluates that on one array per coordinate, which XLA fuses into one loop
-    whatever shape of program the integrand is (see `jaxsample.lanes` for why vmap is not).
+    whatever shape of program the integrand is (see `jaxsample._core.lanes` for why vmap is not).
     """
     point = lambda one: values_fn(one[None])[0]
     return lane_map(point, lanes[0].shape)(tuple(lanes))
+
+
+def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, size: int, out_shape, bins: int, *,
+           total, aligned: int, diagnostics: bool = True) -> _Moments:
+    """Moments of values_fn over the `size` points from global index `offset`: one step of every
+    streaming loop (`_stream`'s scan, `estimate_until`'s while loop).
+
+    `total`: the points of the whole stream when it is known in advance (the sources may use it:
+    stratified cells, Sobol' index bits), else None. `aligned`: the offset is a multiple of it."""
+    # A narrow stream hands the sources a bare uint32 offset: the program of a 32-bit counter.
+    at = offset if offset.wide else offset.lo
+    groups = source.lanes(seed, at, size, dims, dtype, total=total, aligned=aligned)
+    # The g groups share each generator call: computed in one loop, stored once per chunk.
+    values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], token(offset))
+    return _chunk_moments(values, source.replicates, out_shape, bins, diagnostics)
 
 
 def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,
@@ -229,12 +278,8 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
     wide = total > NARROW_LIMIT
 
     def chunk(offset: Index, size):
-        # A narrow stream hands the sources a bare uint32 offset, as before indices had 64 bits.
-        at = offset if offset.wide else offset.lo
-        groups = source.lanes(seed, at, size, dims, dtype, total=total, aligned=aligned)
-        # The g groups share each generator call: computed in one loop, stored once per chunk.
-        values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], token(offset))
-        return _chunk_moments(values, replicates, out_shape, bins, diagnostics)
+        return _chunk(values_fn, source, seed, dims, dtype, offset, size, out_shape, bins, total=total,
+                      aligned=aligned, diagnostics=diagnostics)
 
     bins = tail_bins(total, chunk_size)
     moments = _empty_moments(replicates, out_shape, dtype, bins)
@@ -250,6 +295,35 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
     if tail:
         moments = _merge(moments, chunk(offset_at(base, steps, chunk_size, wide), tail))
     return moments
+
+
+def combine_devices(m: _Moments, axes, per_device: int, n: int, dtype) -> _Moments:
+    """Inside `shard_over`: the moments of every device's `per_device` points, combined into those
+    of all n of them (the same on every device).
+
+    Compensated sums are added, M2 merged about the global mean. The per-replicate sums are
+    gathered and added in double-float (a psum would round them)."""
+    sums, low = doublefloat.sum_axis0(jax.lax.all_gather(m.sums, axes), leaf=1)
+    low = low + jnp.sum(jax.lax.all_gather(m.compensation, axes), axis=0)
+    local_mean = jnp.sum(m.sums + m.compensation, axis=0) / float(per_device)
+    global_mean = jnp.sum(sums + low, axis=0) / float(n)
+    shift = local_mean - global_mean
+    m2 = jax.lax.psum(m.m2 + float(per_device) * shift * shift, axes)
+    # max |Y| is a diagnostic with no derivative (and pmax has no differentiation rule, so
+    # without the stop a gradient of a sharded estimate fails).
+    # The devices' tail states side by side: (2, devices x bins, *out).
+    tails = jax.lax.all_gather(jax.lax.stop_gradient(m.tail), axes, axis=1, tiled=True)
+    return _Moments(sums, low, m2, jax.lax.pmax(jax.lax.stop_gradient(m.max_abs), axes),
+                    jax.lax.psum(m.sum_abs, axes), tails,
+                    jax.lax.psum(jax.lax.stop_gradient(m.nonzero), axes), jnp.asarray(float(n), dtype))
+
+
+def shard_over(mesh, local, *args):
+    """`local(*args)` on every device of `mesh` (`jax.shard_map`, every argument and result replicated)."""
+    from jax.sharding import PartitionSpec
+
+    return jax.shard_map(local, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec(),
+                         check_vma=False)(*args)
 
 
 def _check_n(owner: str, n, replicates: int, devices: int, source: Source) -> int:
@@ -312,7 +386,7 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
     if mesh is None:
         moments = _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape,
                           chunk_size, diagnostics)
-        return _finish(moments, n, replicates)
+        return Estimate(**finish(moments, n, replicates), n=n, replicates=replicates)
 
     per_device = n // devices
     axes = tuple(mesh.axis_names)
@@ -322,24 +396,7 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
         base = offset_at(0, device.astype(jnp.uint32), per_device, n > NARROW_LIMIT)
         m = _stream(values_fn, source, seed, dims, dtype, base, per_device, n, chunk_size,
                     out_shape, math.gcd(per_device, chunk_size), diagnostics)
-        # Combine devices: compensated sums are added, M2 merged about the global mean.
-        # The per-replicate sums are gathered and added in double-float (a psum would round them).
-        sums, low = doublefloat.sum_axis0(jax.lax.all_gather(m.sums, axes), leaf=1)
-        low = low + jnp.sum(jax.lax.all_gather(m.compensation, axes), axis=0)
-        local_mean = jnp.sum(m.sums + m.compensation, axis=0) / float(per_device)
-        global_mean = jnp.sum(sums + low, axis=0) / float(n)
-        shift = local_mean - global_mean
-        m2 = jax.lax.psum(m.m2 + float(per_device) * shift * shift, axes)
-        # max |Y| is a diagnostic with no derivative (and pmax has no differentiation rule, so
-        # without the stop a gradient of a sharded estimate failed).
-        # The devices' tail states side by side: (2, devices x bins, *out).
-        tails = jax.lax.all_gather(jax.lax.stop_gradient(m.tail), axes, axis=1, tiled=True)
-        return _Moments(sums, low, m2, jax.lax.pmax(jax.lax.stop_gradient(m.max_abs), axes),
-                        jax.lax.psum(m.sum_abs, axes), tails,
-                        jax.lax.psum(jax.lax.stop_gradient(m.nonzero), axes), jnp.asarray(float(n), dtype))
+        return combine_devices(m, axes, per_device, n, dtype)
 
-    from jax.sharding import PartitionSpec
-
-    moments = jax.shard_map(local, mesh=mesh, in_specs=PartitionSpec(), out_specs=PartitionSpec(),
-                            check_vma=False)(seed)
-    return _finish(moments, n, replicates)
+    moments = shard_over(mesh, local, seed)
+    return Estimate(**finish(moments, n, replicates), n=n, replicates=replicates)

@@ -1,6 +1,6 @@
 """The integrand rule of every estimator: what f may return, and how its value is averaged.
 
-f maps ONE sample to a pytree of arrays: one array of any fixed shape (as always), or a tuple, a
+f maps ONE sample to a pytree of arrays: one array of any fixed shape, or a tuple, a
 dict, a registered dataclass ... of them. Every estimator that takes an integrand follows this
 rule (`estimate`, `estimate_mis`, `estimate_antithetic`, `estimate_until`, `expectation`, `f` of
 `estimate_ratio` and `estimate_control_variate`, and the per-sample `integrand_values` and
@@ -8,7 +8,7 @@ rule (`estimate`, `estimate_mis`, `estimate_antithetic`, `estimate_until`, `expe
 
 - Each leaf is averaged on its own, and the result has f's structure with an `Estimate` (for
   `estimate_until` an `EstimateUntil`) at every leaf: `est["a"].mean`, `est[0].stderr`. A single
-  array gives a single `Estimate`, exactly as before. All leaves are averaged over the same samples
+  array gives a single `Estimate`. All leaves are averaged over the same samples
   in one pass (one stream, one program), so they are as correlated as the samples make them.
 - Integer and bool leaves are averaged as floats of the estimator's `dtype` (the mean of an
   indicator is a probability); leaves of a pytree are averaged in that dtype.

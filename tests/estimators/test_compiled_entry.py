@@ -1,7 +1,7 @@
 """Estimators called eagerly run as one compiled program (`jaxsample._core.entry`).
 
-Eagerly, `estimate` used to compile ~40 small programs on its first call and its loop again on
-every call, and `jax.grad` of it 158 programs. These tests count XLA compilations (JAX's
+Run op by op, an eager `estimate` compiles ~40 small programs on its first call and its loop again
+on every call, and `jax.grad` of it 158 programs. These tests count XLA compilations (JAX's
 monitoring events, no clock): a repeat call with the same integrand and new parameters and key
 compiles nothing, and the results are those of the same call under `jax.jit`, bit for bit.
 """
@@ -85,3 +85,29 @@ def test_the_usual_errors_come_through():
         jax.jit(lambda n: js.estimate(cos3, js.CosineHemisphere(), jax.random.key(3), n))(jnp.int32(N))
     with pytest.raises(ValueError, match="mode"):
         js.estimate(cos3, js.CosineHemisphere(), jax.random.key(4), N, mode="half")
+
+
+def test_every_public_estimator_is_a_compiled_entry():
+    from jaxsample import scene
+
+    entries = [js.estimate, js.expectation, js.estimate_mis, js.estimate_ratio, js.estimate_antithetic,
+               js.estimate_control_variate, js.estimate_grad, js.expectation_grad, js.estimate_until,
+               scene.shade, scene.shade_grad]
+    assert [fn.__name__ for fn in entries if fn.__code__.co_filename != compiled_entry_file()] == []
+
+
+def compiled_entry_file():
+    from jaxsample._core import entry
+
+    return entry.__file__
+
+
+def test_a_repeated_eager_estimate_until_compiles_nothing():
+    def run(exponent, key):
+        return js.estimate_until(cos3, js.PhongLobe(exponent), key, rtol=1e-2, max_n=1 << 14, chunk_size=1 << 10)
+
+    _, first = _counting_compilations(lambda: run(3.0, jax.random.key(5)))
+    est, again = _counting_compilations(lambda: run(2.0, jax.random.key(6)))
+    assert again == 0, again
+    jitted = jax.jit(lambda k: run(2.0, k))(jax.random.key(6))
+    assert float(est.mean) == float(jitted.mean) and int(est.n_used) == int(jitted.n_used)

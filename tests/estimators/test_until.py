@@ -1,5 +1,11 @@
-"""estimate_until (issue 15, part 2): stops at the requested accuracy, on the same samples as
-estimate, at Sobol' nets; intervals keep their coverage despite the sequential stop."""
+"""estimate_until: stops at the requested accuracy, on the same samples as estimate and with its
+statistics, at Sobol' nets, member by member for a batched sampler and over a device mesh;
+intervals keep their coverage despite the sequential stop."""
+
+import os
+import subprocess
+import sys
+import textwrap
 
 import jax
 import jax.numpy as jnp
@@ -73,3 +79,80 @@ def test_refuses_gradients_and_bad_arguments():
         js.estimate_until(COS3, js.UniformHemisphere(), key, rtol=1e-2, max_n=1 << 14, uniforms="stratified")
     with pytest.raises(ValueError, match="divides"):
         js.estimate_until(COS3, js.UniformHemisphere(), key, rtol=1e-2, max_n=1000, chunk_size=1 << 8)
+
+
+def test_returns_what_estimate_returns_for_the_n_it_used():
+    """One finishing step (`engine.finish`) for both: with the random source and the same chunk
+    size, every statistic of the stopped estimate is estimate's for n_used, bit for bit."""
+    key = jax.random.key(5)
+    chunk = 1 << 10
+    sampler = js.PhongLobe(3.0)
+    result = js.estimate_until(COS3, sampler, jax.random.clone(key), rtol=1e-2, max_n=1 << 18, chunk_size=chunk)
+    same = js.estimate(COS3, sampler, key, int(result.n_used), chunk_size=chunk)
+    for name in ("mean", "stderr", "variance", "max_abs", "ess", "khat", "nonzero"):
+        assert np.asarray(getattr(result, name)).tobytes() == np.asarray(getattr(same, name)).tobytes(), name
+
+
+def test_a_batched_sampler_stops_member_by_member_as_vmap_does():
+    key = jax.random.key(6)
+    exponents = jnp.array([0.0, 3.0])   # cos³ against Phong(3): f/p constant, it stops first
+    call = lambda s, k: js.estimate_until(COS3, s, k, rtol=3e-3, max_n=1 << 18, chunk_size=1 << 10)  # noqa: E731
+    batched = call(js.PhongLobe(exponents), key)
+    mapped = jax.vmap(lambda e: call(js.PhongLobe(e), jax.random.clone(key)))(exponents)
+    assert batched.n_used.shape == (2,) and int(batched.n_used[0]) != int(batched.n_used[1])
+    np.testing.assert_array_equal(batched.n_used, mapped.n_used)
+    np.testing.assert_array_equal(batched.mean, mapped.mean)
+    np.testing.assert_array_equal(batched.stderr, mapped.stderr)
+
+
+def test_refuses_gradients_under_jit_too():
+    key = jax.random.key(7)
+    with pytest.raises(TypeError, match="n_used"):
+        jax.grad(jax.jit(lambda n: js.estimate_until(COS3, js.PhongLobe(n), key, rtol=1e-2, max_n=1 << 14,
+                                                     chunk_size=1 << 12).mean))(5.0)
+    with pytest.raises(TypeError, match="n_used"):
+        jax.grad(lambda a: js.estimate_until(lambda w: a * w[2], js.PhongLobe(3.0), key, rtol=1e-2,
+                                             max_n=1 << 14, chunk_size=1 << 12).mean)(5.0)
+
+
+SHARDED_SCRIPT = textwrap.dedent("""
+    import os
+    os.environ["XLA_FLAGS"] = os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4"
+    import jax, jax.numpy as jnp, numpy as np
+    import jaxsample as js
+    assert jax.device_count() == 4
+    mesh = jax.make_mesh((4,), ("samples",))
+    f = lambda w: w[2] ** 3
+    for uniforms in ("random", "sobol"):
+        key = jax.random.key(8)
+        # Step s of device d draws chunk 4 s + d: the points of one device with 4x the chunk.
+        run = lambda k, chunk, **kw: js.estimate_until(f, js.PhongLobe(3.0), k, rtol=1e-3, max_n=1 << 22,
+                                                       chunk_size=chunk, uniforms=uniforms, **kw)
+        one = jax.jit(lambda k: run(k, 1 << 12))(jax.random.clone(key))
+        sharded = jax.jit(lambda k: run(k, 1 << 10, mesh=mesh))(key)
+        assert int(sharded.n_used) == int(one.n_used), (int(sharded.n_used), int(one.n_used))
+        assert bool(sharded.converged) and bool(one.converged)
+        np.testing.assert_allclose(sharded.mean, one.mean, rtol=1e-6)
+        np.testing.assert_allclose(sharded.stderr, one.stderr, rtol=1e-4)
+        assert float(sharded.max_abs) == float(one.max_abs)
+    # The ratio and control-variate estimators take the same mesh option.
+    ratio = lambda k, **kw: js.estimate_ratio(f, lambda w: w[2], js.PhongLobe(3.0), k, 1 << 16, **kw)
+    control = lambda k, **kw: js.estimate_control_variate(f, lambda w: w[2], np.pi, js.PhongLobe(3.0), k, 1 << 16, **kw)
+    for run in (ratio, control):
+        key = jax.random.key(9)
+        one = jax.jit(run)(jax.random.clone(key))
+        sharded = jax.jit(lambda k: run(k, mesh=mesh))(key)
+        np.testing.assert_allclose(sharded.mean, one.mean, rtol=1e-6)
+        np.testing.assert_allclose(sharded.stderr, one.stderr, rtol=1e-4)
+    print("SHARDED-OK")
+""")
+
+
+def test_sharded_stops_where_one_device_does_in_subprocess():
+    """Also the mesh of estimate_ratio and estimate_control_variate (one subprocess for both)."""
+    # The caller's compiler options (tests/conftest.py), without a device count it may have forced.
+    env = dict(os.environ, XLA_FLAGS=" ".join(flag for flag in os.environ.get("XLA_FLAGS", "").split()
+                                              if "device_count" not in flag))
+    out = subprocess.run([sys.executable, "-c", SHARDED_SCRIPT], capture_output=True, text=True,
+                         env=env, timeout=300)
+    assert "SHARDED-OK" in out.stdout, out.stderr[-3000:]
