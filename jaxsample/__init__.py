@@ -5,9 +5,8 @@ Samplers are immutable pytrees with `warp`, `pdf`, `log_pdf`, `inverse`, `sample
 them into integrals with standard errors under `jit`, `vmap`, `grad` and a device mesh.
 
 The folders are the layers (docs/design.md): `_core` (numerics, pytrees, parameter checks),
-`uniforms`, `samplers`, `estimators`, `edges` (discontinuities and their boundary terms), `checks`
-(public name `testing`), `quadrature`, `scene` and
-`report` (`python -m jaxsample report`). The public names are the ones below.
+`uniforms`, `samplers`, `estimators`, `edges` (discontinuities and their boundary terms), `testing`
+(the public checks), `quadrature`, `scene` and `report` (`python -m jaxsample report`). The public names are the ones below.
 """
 
 from . import edges, gradients, numerics, quadrature, scene, uniforms

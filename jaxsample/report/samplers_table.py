@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxsample as js
-from ..checks import sampler_checks as testing
+from .. import testing
 from .timing import median_seconds
 
 TRI = (jnp.array([0.0, 0.0]), jnp.array([1.0, 0.0]), jnp.array([0.0, 1.0]))

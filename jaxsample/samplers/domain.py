@@ -2,7 +2,7 @@
 over, as plain data.
 
 A sampler only names its domain. The checks (`jaxsample.testing`) turn a domain into a quadrature
-rule and chi-square cells with the geometry in `jaxsample.checks.domains` (public name
+rule and chi-square cells with the geometry in `jaxsample.testing.domains` (public name
 `jaxsample.domains`, which also exports these classes), so importing a sampler does not import the
 checks' grids and binning — as in Mitsuba 3's `chi2.py`, where the domains' binning lives with the
 test and never with the warps.

@@ -24,7 +24,7 @@ import pytest
 
 import jaxsample as js
 from jaxsample import domains
-from jaxsample.checks.sampler_checks import chi2_test, inverse_error, jacobian_error, normalization
+from jaxsample.testing.sampler_checks import chi2_test, inverse_error, jacobian_error, normalization
 
 import registry
 from registry import CHI2_CASES, ENTRIES, cast_params, edge_uniforms

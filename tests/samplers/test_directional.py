@@ -18,7 +18,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import jaxsample as js
-from jaxsample.checks import sampler_checks as testing
+from jaxsample import testing
 
 import registry
 

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import registry
 from helpers import WrongWarp
 from jaxsample.samplers.discrete import Discrete, build_alias_table
-from jaxsample.checks.sampler_checks import chi2_test, normalization
+from jaxsample.testing.sampler_checks import chi2_test, normalization
 
 METHODS = ("cdf", "alias")
 SMALL = registry.WEIGHTS

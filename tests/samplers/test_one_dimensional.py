@@ -21,7 +21,7 @@ from helpers import WrongWarp
 from jaxsample.samplers.exponential import Exponential, TruncatedExponential
 from jaxsample.samplers.piecewise import PiecewiseConstant1D, PiecewiseConstant2D
 from jaxsample.samplers.power import Power
-from jaxsample.checks.sampler_checks import chi2_test, normalization
+from jaxsample.testing.sampler_checks import chi2_test, normalization
 
 TABLE, TABLE_2D = registry.TABLE, registry.TABLE_2D
 

@@ -23,9 +23,9 @@ from jaxsample.samplers import concentric
 from jaxsample.samplers.box import UniformBox
 from jaxsample.samplers.disk import UniformDisk
 from jaxsample.samplers.triangle import UniformTriangle
-from jaxsample.checks.sampler_checks import chi2_test, inverse_error, normalization
+from jaxsample.testing.sampler_checks import chi2_test, inverse_error, normalization
 from jaxsample.samplers.transformed import Transformed
-from jaxsample.checks.domains import Disk
+from jaxsample.testing.domains import Disk
 
 TRIANGLE_2D = registry.TRIANGLE_2D
 

@@ -20,7 +20,7 @@ from jaxsample.samplers.phong import PhongLobe
 from jaxsample.samplers.power import Power
 from jaxsample.samplers.rejection import Rejection
 from jaxsample.samplers.sphere import UniformHemisphere, UniformSphere
-from jaxsample.checks.sampler_checks import chi2_test
+from jaxsample.testing.sampler_checks import chi2_test
 from jaxsample.samplers.transformed import Transformed
 
 # Two-sided normal quantile for a false-failure rate of 1e-6 over the 4 binomial checks below
