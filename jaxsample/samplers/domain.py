@@ -2,9 +2,8 @@
 over, as plain data.
 
 A sampler only names its domain. The checks (`jaxsample.testing`) turn a domain into a quadrature
-rule and chi-square cells with the geometry in `jaxsample.testing.domains` (public name
-`jaxsample.domains`, which also exports these classes), so importing a sampler does not import the
-checks' grids and binning — as in Mitsuba 3's `chi2.py`, where the domains' binning lives with the
+rule and chi-square cells with the geometry in `jaxsample.domains` (which also exports these
+classes), so importing a sampler does not import the checks' grids and binning — as in Mitsuba 3's `chi2.py`, where the domains' binning lives with the
 test and never with the warps.
 
 Besides the set and its measure, a domain states where its density may jump or peak (`breaks`),

@@ -2,7 +2,6 @@
 goodness of fit, normalization by quadrature, inverse and Jacobian consistency — and the geometry
 they integrate over and bin on (`jaxsample.domains`)."""
 
-from . import domains
 from .sampler_checks import (Chi2Result, chi2_test, inverse_error, jacobian_error, normalization, pdf_float64,
                              surface_jacobian, to_float64)
 

@@ -20,7 +20,7 @@ from jax.scipy.special import gammaincc
 
 from .._core.pytree import to_float64
 from ..samplers.base import check_sampler
-from . import domains
+from .. import domains
 
 __all__ = ["Chi2Result", "chi2_test", "normalization", "inverse_error", "jacobian_error", "pdf_float64", "to_float64"]
 

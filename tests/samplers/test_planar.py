@@ -25,7 +25,7 @@ from jaxsample.samplers.disk import UniformDisk
 from jaxsample.samplers.triangle import UniformTriangle
 from jaxsample.testing.sampler_checks import chi2_test, inverse_error, normalization
 from jaxsample.samplers.transformed import Transformed
-from jaxsample.testing.domains import Disk
+from jaxsample.domains import Disk
 
 TRIANGLE_2D = registry.TRIANGLE_2D
 
