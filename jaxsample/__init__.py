@@ -14,8 +14,8 @@ from .estimators import (Estimate, EstimateUntil, UnreliableEstimateWarning, est
                          estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation,
                          expectation_grad, expectation_values, integrand_values)
 from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, Oriented, PhongLobe,
-                       PiecewiseConstant1D, PiecewiseConstant2D, Power, Rejection, RejectionInfo, Sampler,
-                       Transformed, TruncatedExponential, UniformBox, UniformCone, UniformDisk,
+                       PiecewiseConstant1D, PiecewiseConstant2D, Power, Pytree, Rejection, RejectionInfo, Sampler,
+                       Transformed, parameter, point_method, static_field, TruncatedExponential, UniformBox, UniformCone, UniformDisk,
                        UniformHemisphere, UniformSphere, UniformTriangle, VonMisesFisher)
 
 __version__ = "0.1.0"
@@ -43,7 +43,9 @@ __all__ = [
     "UniformDisk", "UniformTriangle", "UniformBox", "Exponential", "TruncatedExponential", "Power",
     "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D",
     # generic constructions
-    "Rejection", "RejectionInfo", "Transformed", "Mixture", "Sampler",
+    "Rejection", "RejectionInfo", "Transformed", "Mixture",
+    # writing your own: the base classes, parameter declarations, per-point methods
+    "Sampler", "Pytree", "parameter", "static_field", "point_method",
     # estimators
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
     "estimate_control_variate", "integrand_values", "estimate_until", "EstimateUntil",

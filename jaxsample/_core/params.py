@@ -57,15 +57,18 @@ def check_parameter(
         low = min(low, float(np.float32(low)))
     if np.isfinite(high):
         high = max(high, float(np.float32(high)))
-    left = "(" if low_open else "["
-    right = ")" if high_open else "]"
-    interval = f"{left}{low:g}, {high:g}{right}"
+    interval = interval_text(low, high, low_open, high_open)
     bad_low = (v <= low) if low_open else (v < low)
     bad_high = (v >= high) if high_open else (v > high)
     bad = np.isnan(v) | bad_low | bad_high
     if np.any(bad):
         shown = v if v.ndim == 0 else v[bad].ravel()[:3]
         raise ValueError(f"{owner}: parameter '{name}' must be in {interval}; got {shown}")
+
+
+def interval_text(low: float, high: float, low_open: bool = False, high_open: bool = False) -> str:
+    """The interval as written in messages and docstrings: "[0, 1e+07]", "(0, inf)"."""
+    return f"{'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
 
 
 def check_number(owner: str, name: str, value: Any) -> None:

@@ -36,7 +36,7 @@ from .._core.numerics import INV_2PI, safe_div, safe_sqrt, sincos_2pi
 import numpy as np
 
 from .._core.params import check_parameter, concrete_value
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, parameter
 from ..samplers.frame import Frame
 
 __all__ = ["Cap", "SphericalTriangle", "SphericalPolygon", "Disk"]
@@ -58,8 +58,7 @@ def _check_vector(owner: str, name: str, value, size: int, nonzero: bool = True)
                          f"shape ({size},); got {v.tolist() if v.size <= 4 else v.shape}")
 
 
-@pytree_dataclass
-class Cap:
+class Cap(Pytree):
     """The spherical cap {ω ∈ S²: ω·â ≥ cos α} about the axis â = axis/|axis|.
 
     Stored as h = 1 − cos α (0 < h ≤ 2), the stable form for small caps (`UniformCone` does the
@@ -69,11 +68,10 @@ class Cap:
     """
 
     axis: jax.Array
-    one_minus_cos: jax.Array
+    one_minus_cos: jax.Array = parameter(0.0, 2.0, low_open=True)
     boundary_dims: ClassVar[int] = 1
 
     def __post_init__(self):
-        check_parameter("Cap", "one_minus_cos", self.one_minus_cos, 0.0, 2.0, low_open=True)
         _check_vector("Cap", "axis", self.axis, 3)
 
     @classmethod
@@ -172,7 +170,7 @@ def _polygon_solid_angle(vertices):
     return total
 
 
-class _ConvexSpherical:
+class _ConvexSpherical(Pytree):
     """What a convex spherical polygon does with its (K, 3) unit vertices (`_vertices()`)."""
 
     def solid_angle(self):
@@ -185,7 +183,6 @@ class _ConvexSpherical:
         return _polygon_boundary(self._vertices(), t)
 
 
-@pytree_dataclass
 class SphericalTriangle(_ConvexSpherical):
     """The spherical triangle of directions spanned by a, b, c (normalised here): the directions
     ω = (λ_a a + λ_b b + λ_c c)/|...| with λ ≥ 0, i.e. the directions in which a point sees the flat
@@ -211,7 +208,6 @@ class SphericalTriangle(_ConvexSpherical):
         return jnp.stack([_unit(self.a), _unit(self.b), _unit(self.c)])
 
 
-@pytree_dataclass
 class SphericalPolygon(_ConvexSpherical):
     """A convex spherical polygon with K >= 3 vertices (a (K, 3) array, normalised here, in order
     around it, either way): the directions inside every edge's great circle. The boundary, the
@@ -246,17 +242,15 @@ def _check_not_degenerate(owner, names, vertices):
                              "(a degenerate polygon of zero solid angle)")
 
 
-@pytree_dataclass
-class Disk:
+class Disk(Pytree):
     """The disk {x ∈ R²: |x − center| ≤ radius}; boundary the circle of length 2π r, outward
     normal (cos φ, sin φ), sampled uniformly by arc length (density 1/(2π r)). Area π r²."""
 
     center: jax.Array
-    radius: jax.Array
+    radius: jax.Array = parameter(0.0, low_open=True)
     boundary_dims: ClassVar[int] = 1
 
     def __post_init__(self):
-        check_parameter("Disk", "radius", self.radius, 0.0, low_open=True)
         _check_vector("Disk", "center", self.center, 2, nonzero=False)
 
     def area(self):

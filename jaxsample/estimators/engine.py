@@ -53,7 +53,7 @@ import numpy as np
 
 from .._core.counts import check_count
 from .._core.params import default_float_dtype, resolve_float_dtype
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree
 from .._core import doublefloat
 from .._core.computed_once import computed_once
 from .._core.lanes import lane_map
@@ -86,8 +86,7 @@ def tree_sum(values: jax.Array) -> jax.Array:
     return values.sum(axis=0)
 
 
-@pytree_dataclass
-class _Moments:
+class _Moments(Pytree):
     """Running statistics of a stream: per-replicate compensated sums, M2, max |Y|, Σ|Y|, the
     largest |Y| (the tail the diagnostics fit), the count of nonzero Y, count."""
 

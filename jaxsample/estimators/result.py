@@ -6,13 +6,12 @@ import math
 
 import jax
 
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, static_field
 
 _NORMAL_QUANTILE_975 = 1.959963984540054
 
 
-@pytree_dataclass(static=("n", "replicates", "gradient"))
-class Estimate:
+class Estimate(Pytree):
     """A Monte Carlo estimate; a pytree (mean, stderr and diagnostics are leaves).
 
     - `mean`: the estimate of the integral (shape of f's value).
@@ -47,9 +46,9 @@ class Estimate:
     ess: jax.Array
     khat: jax.Array
     nonzero: jax.Array
-    n: int = 0
-    replicates: int = 1
-    gradient: bool = False
+    n: int = static_field(default=0)
+    replicates: int = static_field(default=1)
+    gradient: bool = static_field(default=False)
 
     @property
     def reliable(self) -> jax.Array:

@@ -42,7 +42,7 @@ from .._core.counts import check_count
 from .._core.entry import compiled_entry
 from ..samplers.base import check_sampler, checked
 from .._core.params import resolve_float_dtype
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, static_field
 from ..uniforms import Random, Sobol, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, offset_at
 from .diagnostics import tail_bins, verdict
@@ -55,8 +55,7 @@ from .result import interval, interval_quantile
 __all__ = ["EstimateUntil", "estimate_until"]
 
 
-@pytree_dataclass(static=("max_n", "replicates"))
-class EstimateUntil:
+class EstimateUntil(Pytree):
     """The result of `estimate_until`: an estimate from a data-dependent number of samples.
 
     `mean`, `stderr`, `variance`, `max_abs`, `ess`, `khat`, `nonzero`, `reliable` and `diagnostics` as in
@@ -74,8 +73,8 @@ class EstimateUntil:
     nonzero: jax.Array
     n_used: jax.Array
     converged: jax.Array
-    max_n: int = 0
-    replicates: int = 1
+    max_n: int = static_field(default=0)
+    replicates: int = static_field(default=1)
 
     @property
     def reliable(self) -> jax.Array:

@@ -1,10 +1,13 @@
 """Layer 3: samplers — warps from [0, 1)^d onto a domain, each beside its density and inverse.
 
-`Sampler` (in `base`) is the public base class: a subclass is a pytree without registration. One
-file per family; each class's docstring states the measure its density is over.
+`Sampler` (in `base`) is the public base class: a subclass is a pytree without registration
+(`Pytree`), declares its parameters' ranges with `parameter(low, high)`, and may decorate its
+per-point methods with `point_method` (batched and checked). One file per family; each class's
+docstring states the measure its density is over.
 """
 
-from .base import Sampler
+from .._core.pytree import Pytree, parameter, static_field
+from .base import Sampler, point_method
 from .box import UniformBox
 from .cone import UniformCone
 from .cosine import CosineHemisphere
@@ -24,7 +27,7 @@ from .triangle import UniformTriangle
 from .vmf import VonMisesFisher
 
 __all__ = [
-    "Sampler", "UniformSphere", "UniformHemisphere", "CosineHemisphere", "PhongLobe", "UniformCone",
+    "Sampler", "Pytree", "parameter", "static_field", "point_method", "UniformSphere", "UniformHemisphere", "CosineHemisphere", "PhongLobe", "UniformCone",
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",

@@ -12,7 +12,6 @@ from __future__ import annotations
 import functools
 import inspect
 import operator
-import weakref
 from typing import ClassVar
 
 import jax
@@ -21,68 +20,182 @@ import numpy as np
 
 from .._core.entry import array_leaves
 from .._core.params import resolve_float_dtype
-from .._core.pytree import Pytree, tree_fields
+from .._core.pytree import Pytree, declared_ranges_hold, is_checked, mark_checked, parameters, tree_fields
 from .._core.numerics import safe_log
 
 
+def checked(sampler):
+    """`sampler` with the invalid-parameter rule applied (`_poisoned`), marked as checked.
+
+    The mark travels with the pytree (`jaxsample._core.pytree.mark_checked`), so the samplers
+    nested in it, and the copies JAX rebuilds from it inside a loop, are not checked again: a loop
+    (`sample`, the estimators) checks once, outside, by calling `checked` before it. A sampler the
+    user holds is never marked (the mark is set on a copy)."""
+    return _checked_with_poison(sampler)[0]
+
+
+def _checked_with_poison(sampler):
+    """(`checked(sampler)`, the poison `_poisoned` applied: None when none was needed)."""
+    if is_checked(sampler):
+        return sampler, None
+    result, poison = _poisoned(sampler)
+    if result is sampler:
+        leaves, treedef = jax.tree_util.tree_flatten(sampler)
+        result = jax.tree_util.tree_unflatten(treedef, leaves)
+    for s in _samplers_in(result):
+        mark_checked(s)
+    return result, poison
+
+
+def _point_argument(method) -> str:
+    """The name of a point method's point argument (`u` or `x`), for calls by keyword."""
+    return list(inspect.signature(method).parameters)[1]
+
+
+_CONTRACT_DOCS = {
+    "warp": "The point of the domain that the uniforms u (..., uniform_dims) in [0, 1) map to.",
+    "warp_with_pdf": "(warp(u), pdf(warp(u))), the density computed from u where that is more exact.",
+    "pdf": "The density at x over the sampler's `measure`, 0 outside the support (never NaN).",
+    "log_pdf": "log of `pdf`, -inf outside the support (never NaN).",
+    "inverse": "The uniforms u with warp(u) = x (the warp is a bijection).",
+}
+
+
+def point_method(method=None, *, batched: bool = True):
+    """Decorator of a sampler's per-point method written for ONE distribution (`warp`, `pdf`, ...):
+    the decorated method obeys the invalid-parameter rule (`checked`) and, with `batched`, maps over
+    a batch of distributions (`apply_point`). Every library sampler decorates its point methods; a
+    user's sampler may too (undecorated, its methods run as written, and `sample`, `prob`,
+    `log_prob` and the estimators still batch and check them).
+
+    Called eagerly (concrete parameters and points, no extra arguments) a batched method runs as
+    one compiled program (cached per class, shapes and dtypes), not op by op.
+    """
+    if method is None:
+        return functools.partial(point_method, batched=batched)
+    if not batched:
+        @functools.wraps(method)
+        def checked_method(self, *args, **kwargs):
+            sampler, poison = _checked_with_poison(self)
+            return _poison_outputs(method(sampler, *args, **kwargs), poison)
+
+        return checked_method
+
+    name, argument = method.__name__, _point_argument(method)
+
+    @functools.wraps(method)
+    def batched_method(self, *args, **kwargs):
+        if args:
+            point, args = args[0], args[1:]
+        elif argument in kwargs:
+            point = kwargs.pop(argument)
+        else:
+            raise TypeError(f"{type(self).__name__}.{name}: missing the point argument '{argument}'")
+        return _apply(self, method, argument == "u", point, args, kwargs, compiled)
+
+    compiled = jax.jit(lambda sampler, point: batched_method(sampler, point))
+    batched_method.one_distribution = method
+    if batched_method.__doc__ is None and name in _CONTRACT_DOCS:
+        batched_method.__doc__ = _CONTRACT_DOCS[name]
+    return batched_method
+
+
+def apply_point(sampler, name: str, point):
+    """`sampler.<name>(point)` batched over the sampler's batch and checked, whether or not the
+    class decorated that method with `point_method`."""
+    method = getattr(type(sampler), name)
+    if hasattr(method, "one_distribution"):
+        return method(sampler, point)
+    return _apply(sampler, method, _point_argument(method) == "u", point, (), {}, None)
+
+
+def _apply(sampler, method, takes_u: bool, point, args, kwargs, compiled):
+    """`method` (written for one distribution) at `point`: compiled when eager and concrete, per
+    batch member (`jax.vmap` over the flattened batch) when the sampler has a batch."""
+    if (compiled is not None and not args and not kwargs and isinstance(point, (jax.Array, np.ndarray, np.generic))
+            and array_leaves((sampler, point), concrete=True)):
+        return compiled(sampler, point)
+    batch = sampler.batch_shape
+    if not batch:
+        sampler, poison = _checked_with_poison(sampler)
+        return _poison_outputs(method(sampler, point, *args, **kwargs), poison)
+    if not sampler.batchable:
+        raise ValueError(f"{type(sampler).__name__}: cannot be batched (its tables are built per distribution); "
+                         f"got parameters with batch_shape {batch}; build one per member")
+    core = (sampler.uniform_dims,) if takes_u else tuple(sampler.event_shape)
+    point = jnp.asarray(point)
+    full = tuple(jnp.broadcast_shapes(point.shape, batch + core))
+    sample = full[: len(full) - len(batch) - len(core)]
+    count = int(np.prod(sample, dtype=np.int64))
+    size = int(np.prod(batch, dtype=np.int64))
+    points = jnp.broadcast_to(point, full).reshape((count, size) + core)
+    one = lambda member, p: _apply(member, method, takes_u, p, args, kwargs, None)
+    out = jax.vmap(one, in_axes=(0, 1), out_axes=1)(flat_batch(sampler, batch), points)
+    return jax.tree_util.tree_map(lambda o: o.reshape(sample + batch + o.shape[2:]), out)
+
+
+
 class Sampler(Pytree):
-    """Base class: `sample`, `sample_with_pdf`, `log_pdf` and `warp_with_pdf` from `warp` and `pdf`.
+    """Base class: `sample`, `sample_with_pdf`, `prob`, `log_prob`, `log_pdf` and `warp_with_pdf`
+    from `warp` and `pdf`.
 
-    Subclasses define `uniform_dims`, `event_shape`, `measure`, `warp(u)`, `pdf(x)` and `domain()`;
-    they may override `warp_with_pdf` when the density is more accurate from u than from x (sharp
-    lobes), and `inverse` where the warp is a bijection. Every subclass is a pytree with no
-    registration (`jaxsample._core.pytree.Pytree`): attributes holding arrays or floats are its
-    leaves (traceable under `jit`, `vmap` and `grad`), the others (strings, ints) static metadata.
+    Subclasses define `uniform_dims`, `warp(u)`, `pdf(x)` and `domain()` (which also gives
+    `event_shape` and `measure`, unless the class states them); they may override `warp_with_pdf`
+    when the density is more accurate from u than from x (sharp lobes), and `inverse` where the
+    warp is a bijection. A subclass is a `Pytree` (`jaxsample._core.pytree`): a frozen
+    dataclass-style pytree whose annotated fields are leaves, traceable under `jit`, `vmap` and
+    `grad`, unless declared `static_field()`.
 
-    Batches (as in TFP and distrax). A class declares the rank of each parameter that may carry a
-    batch (`parameter_ranks`: 0 for a scalar such as an exponent, 1 for a vector such as a vertex);
-    a declared parameter with leading dimensions beyond its rank makes a batch of distributions,
-    and `batch_shape` is the broadcast of those leading shapes. Undeclared array attributes (tables,
-    a user's own arrays) are taken whole, never as a batch; nested samplers declare their own. The point
-    methods `warp`, `warp_with_pdf`, `pdf`, `log_pdf` and `inverse`, written by a subclass for one
-    distribution, are batched here for every subclass: they take points of shape
-    `sample_shape + batch_shape + core` (or broadcastable to it) and evaluate each batch member at its
-    own points (`jax.vmap` over the flattened batch). `sample(key, sample_shape)` returns
-    `sample_shape + batch_shape + event_shape`. A sampler whose tables cannot be batched sets
-    `batchable = False` and refuses batched parameters.
+    Parameters are declared once, as fields: `exponent: jax.Array = parameter(0.0, 1e7)`. The
+    declaration states the range and the parameter's own rank (0 for a scalar such as an exponent,
+    1 for a vector such as a vertex).
+
+    Batches (as in TFP and distrax): a declared parameter with leading dimensions beyond its rank
+    makes a batch of distributions, and `batch_shape` is the broadcast of those leading shapes;
+    undeclared fields (a user's own arrays) are taken whole, never as a batch, and nested samplers
+    declare their own. A per-point method written for one distribution and decorated with
+    `point_method` (every library sampler's `warp`, `warp_with_pdf`, `pdf`, `log_pdf`, `inverse`)
+    takes points of shape `sample_shape + batch_shape + core` (or broadcastable to it) and evaluates
+    each batch member at its own points (`jax.vmap` over the flattened batch); `prob`, `log_prob`,
+    `sample` and the estimators do the same for undecorated methods (`apply_point`).
+    `sample(key, sample_shape)` returns `sample_shape + batch_shape + event_shape`. A sampler whose
+    tables cannot be batched sets `batchable = False` and refuses batched parameters.
 
     Invalid parameters (the one rule, docs/design.md "Invalid input"): a concrete parameter outside
-    its range raises `ValueError` naming it and the range at construction (a non-number raises
-    `TypeError`); a traced one cannot raise, so `_parameters_valid()` (each class states its
-    ranges) poisons the parameters with NaN before any point method runs: float values, densities
-    and gradients are then NaN (integer outputs, such as `Discrete`'s indices, cannot be; their
-    densities are), and estimators report a NaN mean with an infinite stderr, never a finite
-    number. The same holds for concrete parameters that never met a constructor (a sampler rebuilt
-    by `jax.tree_util.tree_map`, an optimizer's step). Loops check once, outside (`checked`).
+    its declared range raises `ValueError` naming it and the range when it is assigned, in the
+    constructor (a non-number raises `TypeError`); a traced one cannot raise, so
+    `_parameters_valid()` (the declared ranges, and any rule a class adds) poisons the parameters
+    with NaN before a point method runs: float values, densities and gradients are then NaN (integer
+    outputs, such as `Discrete`'s indices, cannot be; their densities are), and estimators report a
+    NaN mean with an infinite stderr, never a finite number. The same holds for concrete parameters
+    that never met a constructor (a sampler rebuilt by `jax.tree_util.tree_map`, an optimizer's
+    step). Loops check once, outside (`checked`).
     """
 
     uniform_dims: ClassVar[int]
-    event_shape: ClassVar[tuple[int, ...]] = ()
-    # The measure the density is over ("solid angle", "area", "length", "counting", ...): MIS
-    # refuses to combine samplers whose densities are over different measures.
-    measure: ClassVar[str | None] = None
     # Uniform coordinates that are periodic (an azimuth 2πu): u and u ± 1 give the same point, so
     # round-trip checks compare them modulo 1.
     periodic_dims: ClassVar[tuple[int, ...]] = ()
-    # Rank of each batchable parameter's own shape; leading dimensions beyond it are a batch.
-    # Attributes not named here are taken whole (never batched).
-    parameter_ranks: ClassVar[dict[str, int]] = {}
     batchable: ClassVar[bool] = True
 
-    def __init_subclass__(cls, **kwargs):
-        super().__init_subclass__(**kwargs)
-        for name in _POINT_METHODS:
-            method = cls.__dict__.get(name)
-            if callable(method) and not getattr(method, "_batched", False):
-                setattr(cls, name, _batched(method, name))
-        for name in _CHECKED_HELPERS:
-            method = cls.__dict__.get(name)
-            if callable(method) and not getattr(method, "_batched", False):
-                setattr(cls, name, _checking(method))
-
     def _parameters_valid(self):
-        """A boolean (scalar) array: whether the parameters are in range; None if always valid."""
-        return None
+        """A boolean (scalar) array: whether the parameters are in range; None if always valid.
+
+        The declared ranges (`parameter(low, high)` fields) are tested here; a class with a rule
+        no range states (weights that sum to more than 0) extends this with `super()`."""
+        return declared_ranges_hold(self)
+
+    @property
+    def event_shape(self) -> tuple[int, ...]:
+        """The shape of one sample: the domain's (`domain().event_shape`) unless the class states it."""
+        return tuple(self.domain().event_shape)
+
+    @property
+    def measure(self) -> str | None:
+        """The measure the density is over ("solid angle", "area", "length", "counting", ...): the
+        domain's unless the class states it. MIS refuses to combine samplers whose densities are
+        over different measures."""
+        return getattr(self.domain(), "measure", None)
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
@@ -90,30 +203,35 @@ class Sampler(Pytree):
         return _batch_shape(self)
 
     def warp(self, u: jax.Array) -> jax.Array:
-        raise NotImplementedError
+        """The point of the domain that the uniforms u (..., uniform_dims) in [0, 1) map to."""
+        raise NotImplementedError(f"{type(self).__name__} does not define warp(u)")
 
     def pdf(self, x: jax.Array) -> jax.Array:
-        raise NotImplementedError
+        """The density at x over the sampler's `measure`, 0 outside the support (never NaN)."""
+        raise NotImplementedError(f"{type(self).__name__} does not define pdf(x)")
 
+    @point_method
     def log_pdf(self, x: jax.Array) -> jax.Array:
         """log of `pdf`, -inf outside the support (never NaN)."""
         return safe_log(self.pdf(x))
 
+    @point_method
     def warp_with_pdf(self, u: jax.Array) -> tuple[jax.Array, jax.Array]:
         """(warp(u), pdf(warp(u))); subclasses compute the density from u where that is more exact."""
         x = self.warp(u)
         return x, self.pdf(x)
 
     def inverse(self, x: jax.Array) -> jax.Array:
+        """The uniforms u with warp(u) = x, where the warp is a bijection."""
         raise NotImplementedError(_no_inverse(type(self)))
 
     def prob(self, x: jax.Array) -> jax.Array:
-        """The density at `x` (the name TFP, distrax and NumPyro use): the same function as `pdf`."""
-        return self.pdf(x)
+        """The density at `x` (the name TFP, distrax and NumPyro use): `pdf`, batched and checked."""
+        return apply_point(self, "pdf", x)
 
     def log_prob(self, x: jax.Array) -> jax.Array:
-        """The log density at `x` (TFP's, distrax's and NumPyro's name): the same function as `log_pdf`."""
-        return self.log_pdf(x)
+        """The log density at `x` (TFP's, distrax's and NumPyro's name): `log_pdf`, batched and checked."""
+        return apply_point(self, "log_pdf", x)
 
     @property
     def has_inverse(self) -> bool:
@@ -142,9 +260,6 @@ class Sampler(Pytree):
                     "warp_with_pdf")
 
 
-_POINT_METHODS = ("warp", "warp_with_pdf", "pdf", "log_pdf", "inverse")
-# Per-point helpers some samplers add (one distribution each): they obey the invalid-parameter rule.
-_CHECKED_HELPERS = ("measure_valued_pair", "warp_with_info", "warp_with_remainder")
 
 
 def _no_inverse(cls) -> str:
@@ -200,9 +315,9 @@ def _one_shape(sample_shape, shape):
 
 def _leaf_ranks(obj) -> list[int | None]:
     """The own rank of each leaf of `obj`, in `jax.tree_util.tree_leaves` order (None: the whole
-    leaf is its own shape, as for every attribute a class does not declare in `parameter_ranks`)."""
+    leaf is its own shape, as for every attribute not declared a `parameter`)."""
     names, _ = tree_fields(obj)
-    declared = getattr(type(obj), "parameter_ranks", {})
+    declared = {name: spec.rank for name, spec in parameters(obj).items()}
     ranks = []
     for name in names:
         for item in jax.tree_util.tree_leaves(getattr(obj, name), is_leaf=lambda v: isinstance(v, Pytree)):
@@ -293,8 +408,9 @@ def _samplers_in(obj) -> list:
 
 
 def _poisoned(sampler):
-    """`sampler` with every float parameter made NaN where it, or a sampler nested in it, has
-    invalid parameters (`_parameters_valid()` False).
+    """(`sampler` with every float parameter made NaN where it, or a sampler nested in it, has
+    invalid parameters (`_parameters_valid()` False), the poison e: 0.0, NaN, or None when the
+    parameters are known valid).
 
     Each parameter becomes θ·(1 + e) with e = 0 (valid: θ exactly, derivative 1) or NaN (invalid):
     the values are NaN, and so is the derivative of every entry of θ, also of the entries a
@@ -305,7 +421,7 @@ def _poisoned(sampler):
     traced = [v for v in checks if isinstance(v, jax.core.Tracer)]
     if all(bool(np.all(np.asarray(v))) for v in checks if not isinstance(v, jax.core.Tracer)):
         if not traced:
-            return sampler
+            return sampler, None
         valid = functools.reduce(jnp.logical_and, [jnp.all(v) for v in traced])
     else:
         valid = False
@@ -317,93 +433,21 @@ def _poisoned(sampler):
             return leaf * (1 + poison.astype(leaf_dtype))
         return leaf
 
-    return jax.tree_util.tree_map(add, sampler)
+    return jax.tree_util.tree_map(add, sampler), poison
 
 
-# Samplers whose parameters have been checked (and poisoned where invalid), by id, each with a
-# weak reference that proves the id still names that object. A checked sampler is immutable, so
-# it never needs checking again: nested samplers of a checked one skip their own check, and a
-# loop (`sample`, the estimators) checks once, outside, by calling `checked` before it.
-_CHECKED: dict[int, weakref.ref] = {}
+def _poison_outputs(out, poison):
+    """Float outputs of a point method times (1 + e): NaN where the parameters are invalid. A
+    density written as `where(x inside, ..., 0)` would otherwise report 0 for a NaN parameter
+    (the comparison with NaN is False), a finite number where the rule promises NaN."""
+    if poison is None:
+        return out
 
+    def add(leaf):
+        leaf_dtype = jnp.result_type(leaf)
+        return leaf * (1 + poison.astype(leaf_dtype)) if jnp.issubdtype(leaf_dtype, jnp.inexact) else leaf
 
-def _forget(ident: int):
-    return lambda _ref: _CHECKED.pop(ident, None)
-
-
-def checked(sampler):
-    """`sampler` with the invalid-parameter rule applied (`_poisoned`), remembered as checked."""
-    ref = _CHECKED.get(id(sampler))
-    if ref is not None and ref() is sampler:
-        return sampler
-    result = _poisoned(sampler)
-    for s in _samplers_in(result):
-        try:
-            _CHECKED[id(s)] = weakref.ref(s, _forget(id(s)))
-        except TypeError:  # a class with __slots__ and no weak references: checked per call
-            pass
-    return result
-
-
-def _point_argument(method) -> str:
-    """The name of a point method's point argument (`u` or `x`), for calls by keyword."""
-    return list(inspect.signature(method).parameters)[1]
-
-
-def _batched(method, name: str):
-    takes_u = name in ("warp", "warp_with_pdf")
-    argument = _point_argument(method)
-
-    @functools.wraps(method)
-    def point_method(self, *args, **kwargs):
-        if args:
-            point, args = args[0], args[1:]
-        elif argument in kwargs:
-            point = kwargs.pop(argument)
-        else:
-            raise TypeError(f"{type(self).__name__}.{name}: missing the point argument '{argument}'")
-        # Called eagerly (concrete parameters and points, no extra arguments), the method runs as
-        # one compiled program (cached per class, shapes and dtypes) instead of op by op: every
-        # small operation was a program of its own, compiled on first use and dispatched each call.
-        if (not args and not kwargs and isinstance(point, (jax.Array, np.ndarray, np.generic))
-                and array_leaves((self, point), concrete=True)):
-            return compiled(self, point)
-        batch = self.batch_shape
-        if not batch:
-            return method(checked(self), point, *args, **kwargs)
-        if not self.batchable:
-            raise ValueError(f"{type(self).__name__}: cannot be batched (its tables are built per distribution); "
-                             f"got parameters with batch_shape {batch}; build one per member")
-        core = (self.uniform_dims,) if takes_u else tuple(self.event_shape)
-        point = jnp.asarray(point)
-        full = tuple(jnp.broadcast_shapes(point.shape, batch + core))
-        sample = full[: len(full) - len(batch) - len(core)]
-        count = int(np.prod(sample, dtype=np.int64))
-        size = int(np.prod(batch, dtype=np.int64))
-        points = jnp.broadcast_to(point, full).reshape((count, size) + core)
-        one = lambda member, p: point_method(member, p, *args, **kwargs)
-        out = jax.vmap(one, in_axes=(0, 1), out_axes=1)(flat_batch(self, batch), points)
-        return jax.tree_util.tree_map(lambda o: o.reshape(sample + batch + o.shape[2:]), out)
-
-    compiled = jax.jit(lambda sampler, point: point_method(sampler, point))
-    point_method._batched = True
-    return point_method
-
-
-def _checking(method):
-    """A per-point helper of one distribution (`measure_valued_pair`, `warp_with_info`, ...): not
-    batched, but it obeys the invalid-parameter rule as the point methods do."""
-
-    @functools.wraps(method)
-    def checked_method(self, *args, **kwargs):
-        return method(checked(self), *args, **kwargs)
-
-    checked_method._batched = True
-    return checked_method
-
-
-for _name in _POINT_METHODS:
-    setattr(Sampler, _name, _batched(Sampler.__dict__[_name], _name))
+    return jax.tree_util.tree_map(add, out)
 
 
 def draw(sampler: Sampler, key, shape, dtype, method: str):
@@ -439,7 +483,7 @@ def _draw_batch(sampler: Sampler, key, shape: tuple[int, ...], dtype, method: st
     full = shape + sampler.batch_shape
     count = int(np.prod(full, dtype=np.int64))
     u = Random().block(seed_from_key(key), jnp.uint32(0), count, sampler.uniform_dims, dtype)
-    return getattr(sampler, method)(u.reshape(full + (sampler.uniform_dims,)))
+    return apply_point(sampler, method, u.reshape(full + (sampler.uniform_dims,)))
 
 
 def _as_dtype(dtype):

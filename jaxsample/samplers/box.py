@@ -10,13 +10,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
-from .._core.params import as_parameter, check_number, concrete_value
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method
+from .._core.params import concrete_value
+from .._core.pytree import parameter
 from .domain import Box
 
 
-@pytree_dataclass
 class UniformBox(Sampler):
     """Uniform on prod_k [low_k, high_k]: p = 1/prod_k (high_k - low_k), 0 outside.
 
@@ -25,15 +24,10 @@ class UniformBox(Sampler):
     shape (d,), with low < high (ValueError otherwise).
     """
 
-    low: jax.Array
-    high: jax.Array
-    parameter_ranks = {"low": 1, "high": 1}
+    low: jax.Array = parameter(rank=1, doc="the lower corner, finite")
+    high: jax.Array = parameter(rank=1, doc="the upper corner, finite, above low")
 
     def __post_init__(self):
-        object.__setattr__(self, "low", as_parameter(self.low))
-        object.__setattr__(self, "high", as_parameter(self.high))
-        check_number("UniformBox", "low", self.low)
-        check_number("UniformBox", "high", self.high)
         low, high = concrete_value(self.low), concrete_value(self.high)
         if low is None or high is None:
             return
@@ -59,22 +53,26 @@ class UniformBox(Sampler):
 
     def _parameters_valid(self):
         low, high = jnp.asarray(self.low), jnp.asarray(self.high)
-        return jnp.all(jnp.isfinite(low) & jnp.isfinite(high) & (low < high))
+        return jnp.all(jnp.isfinite(low) & jnp.isfinite(high) & (low < high))  # no range states low < high
 
     def _volume(self):
         return jnp.prod(jnp.asarray(self.high) - jnp.asarray(self.low), axis=-1)
 
+    @point_method
     def warp(self, u):
         return (1.0 - u) * self.low + u * self.high
 
+    @point_method
     def warp_with_pdf(self, u):
         x = self.warp(u)
         return x, jnp.broadcast_to(1.0 / self._volume(), x.shape[:-1]).astype(x.dtype)
 
+    @point_method
     def pdf(self, x):
         inside = jnp.all((x >= self.low) & (x <= self.high), axis=-1)
         return jnp.where(inside, 1.0 / self._volume(), 0.0).astype(jnp.result_type(x, float))
 
+    @point_method
     def inverse(self, x):
         return jnp.clip((x - self.low) / (jnp.asarray(self.high) - self.low), 0.0, 1.0)
 

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
-from .._core.params import as_parameter, check_parameter, concrete_value, in_range
-from .._core.pytree import pytree_attributes
+from .base import Sampler, point_method
+from .._core.params import as_parameter, check_parameter, concrete_value
+from .._core.pytree import parameter
 from .domain import Directions
 from .._core.numerics import (INV_2PI, safe_sqrt, azimuth_fraction, direction_from_one_minus_cos,
     one_minus_cos_theta)
@@ -19,7 +20,6 @@ from .._core.numerics import (INV_2PI, safe_sqrt, azimuth_fraction, direction_fr
 _EDGE_SLACK = 4 * np.finfo(np.float32).eps
 
 
-@pytree_attributes(leaves=("one_minus_cos_theta_max",))
 class UniformCone(Sampler):
     """Uniform on the cap {ω : cos θ >= cos θ_max}: p(ω) = 1/(2π(1 - cos θ_max)) over solid angle.
 
@@ -31,14 +31,14 @@ class UniformCone(Sampler):
     form h = sin²θ_max / (1 + cos θ_max) of PBRT's sphere light); `UniformCone(cos_theta_max)` is
     exact only while 1 - cos θ_max is well above float epsilon.
 
-    Valid range: cos_theta_max in [-1, 1), i.e. 0 < h <= 2 (checked when concrete).
+    `cos_theta_max` must be in [-1, 1).
     """
 
+    one_minus_cos_theta_max: jax.Array = parameter(0.0, 2.0, low_open=True, doc="h = 1 - cos θ_max")
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
     periodic_dims: ClassVar = (1,)
     measure: ClassVar = "solid angle"
-    parameter_ranks: ClassVar = {"one_minus_cos_theta_max": 0}
 
     def __init__(self, cos_theta_max=None, *, one_minus_cos_theta_max=None):
         if (cos_theta_max is None) == (one_minus_cos_theta_max is None):
@@ -47,13 +47,7 @@ class UniformCone(Sampler):
         if cos_theta_max is not None:
             check_parameter("UniformCone", "cos_theta_max", cos_theta_max, -1.0, 1.0, high_open=True)
             one_minus_cos_theta_max = 1.0 - cos_theta_max
-        else:
-            check_parameter("UniformCone", "one_minus_cos_theta_max", one_minus_cos_theta_max, 0.0, 2.0,
-                            low_open=True)
         self.one_minus_cos_theta_max = one_minus_cos_theta_max
-
-    def _parameters_valid(self):
-        return in_range(self.one_minus_cos_theta_max, 0.0, 2.0, low_open=True)
 
     @classmethod
     def from_angle(cls, theta_max):
@@ -89,18 +83,22 @@ class UniformCone(Sampler):
     def __repr__(self):
         return f"UniformCone(one_minus_cos_theta_max={self.one_minus_cos_theta_max!r})"
 
+    @point_method
     def warp(self, u):
         return direction_from_one_minus_cos(u[..., 0] * self.one_minus_cos_theta_max, u[..., 1])
 
+    @point_method
     def warp_with_pdf(self, u):
         x = self.warp(u)
         return x, jnp.broadcast_to(INV_2PI / self.one_minus_cos_theta_max, x.shape[:-1]).astype(x.dtype)
 
+    @point_method
     def pdf(self, x):
         h = self.one_minus_cos_theta_max
         inside = one_minus_cos_theta(x) <= h * (1.0 + _EDGE_SLACK)
         return jnp.where(inside, INV_2PI / h, 0.0).astype(jnp.result_type(x, float))
 
+    @point_method
     def inverse(self, x):
         u0 = one_minus_cos_theta(x) / self.one_minus_cos_theta_max
         return jnp.stack([u0, azimuth_fraction(x[..., 1], x[..., 0])], axis=-1)

@@ -7,14 +7,13 @@ from typing import ClassVar
 import jax.numpy as jnp
 
 from . import concentric
-from .base import Sampler
+from .base import Sampler, point_method
 from .._core.params import check_choice
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import static_field
 from .domain import Directions
 from .._core.numerics import INV_PI, azimuth_fraction, safe_sqrt, spherical_direction
 
 
-@pytree_dataclass(static=("method",))
 class CosineHemisphere(Sampler):
     """Cosine-weighted hemisphere about +z, p(ω) = max(cos θ, 0)/π over solid angle.
 
@@ -34,7 +33,7 @@ class CosineHemisphere(Sampler):
     maps have the same variance.
     """
 
-    method: str = "malley"
+    method: str = static_field(default="malley")
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
     measure: ClassVar = "solid angle"
@@ -46,6 +45,7 @@ class CosineHemisphere(Sampler):
     def __post_init__(self):
         check_choice("CosineHemisphere", "method", self.method, ("malley", "inversion"))
 
+    @point_method
     def warp(self, u):
         if self.method == "inversion":
             u0 = u[..., 0]
@@ -55,14 +55,17 @@ class CosineHemisphere(Sampler):
         z = safe_sqrt((1.0 - r) * (1.0 + r))
         return jnp.stack([x, y, z], axis=-1)
 
+    @point_method
     def pdf(self, x):
         return jnp.maximum(x[..., 2], 0.0) * INV_PI
 
+    @point_method
     def warp_with_pdf(self, u):
         # Both maps give z = cos θ >= 0 (a safe_sqrt), so the density needs no clamp.
         x = self.warp(u)
         return x, x[..., 2] * INV_PI
 
+    @point_method
     def inverse(self, x):
         if self.method == "inversion":
             sin2 = x[..., 0] ** 2 + x[..., 1] ** 2

@@ -14,9 +14,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
+from .base import Sampler, point_method
 from .._core.params import check_choice, check_number, concrete_value, default_float_dtype
-from .._core.pytree import pytree_attributes
+from .._core.pytree import parameter, static_field
 from .domain import DiscreteSet
 from .._core.numerics import one_minus_epsilon
 
@@ -202,7 +202,6 @@ def build_alias_table(pmf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.clip(probability, 0.0, 1.0), alias
 
 
-@pytree_attributes(leaves=("pmf", "cdf", "alias_probability", "alias"), static=("method",))
 class Discrete(Sampler):
     """Outcome i in {0, ..., K-1} with probability p_i = w_i / Σ w (density over the counting measure).
 
@@ -226,10 +225,14 @@ class Discrete(Sampler):
     parameters"). One table per sampler: weights with a batch dimension raise ValueError.
     """
 
+    pmf: jax.Array = parameter(rank=1, doc="the outcomes' probabilities")
+    cdf: jax.Array = parameter(rank=1)
+    alias_probability: jax.Array | None = parameter(rank=1, default=None)
+    alias: jax.Array | None = parameter(rank=1, default=None)
+    method: str = static_field(default="cdf")
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
     measure: ClassVar = "counting"
-    parameter_ranks: ClassVar = {"pmf": 1, "cdf": 1, "alias_probability": 1, "alias": 1}
     batchable: ClassVar = False
 
     def _parameters_valid(self):
@@ -260,6 +263,7 @@ class Discrete(Sampler):
     def size(self) -> int:
         return self.pmf.shape[-1]
 
+    @point_method(batched=False)
     def warp_with_remainder(self, u):
         """(outcome, remainder): the remainder is what is left of u[..., 0], uniform on [0, 1)."""
         u0 = jnp.asarray(u)[..., 0]
@@ -277,13 +281,16 @@ class Discrete(Sampler):
                               (fraction - keep_probability) / jnp.where(keep_probability < 1, 1.0 - keep_probability, 1.0))
         return outcome, jnp.clip(remainder, 0.0, one_minus_epsilon(u0.dtype))
 
+    @point_method
     def warp(self, u):
         return self.warp_with_remainder(u)[0]
 
+    @point_method
     def warp_with_pdf(self, u):
         outcome, _ = self.warp_with_remainder(u)
         return outcome, self.pmf[outcome].astype(jnp.asarray(u).dtype)
 
+    @point_method
     def pdf(self, x):
         x = jnp.asarray(x)
         k = self.size

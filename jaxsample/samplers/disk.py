@@ -8,9 +8,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import concentric
-from .base import Sampler
-from .._core.params import check_choice, check_parameter
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method
+from .._core.params import check_choice
+from .._core.pytree import parameter, static_field
 from .domain import Disk
 from .._core.numerics import INV_PI, azimuth_fraction, safe_sqrt, sincos_2pi
 from .rejection import select_first
@@ -22,7 +22,6 @@ def _polar(u):
     return jnp.stack([r * cos_phi, r * sin_phi], axis=-1)
 
 
-@pytree_dataclass(static=("method", "tries"))
 class UniformDisk(Sampler):
     """Uniform on the unit disk {x² + y² <= 1}: p = 1/π over area, 0 outside.
 
@@ -40,14 +39,13 @@ class UniformDisk(Sampler):
     so the output stays exactly uniform (as `UniformSphere(method="rejection")`). No inverse.
     """
 
-    method: str = "concentric"
-    tries: int = 8
+    method: str = static_field(default="concentric")
+    tries: int = parameter(1, 4096, static=True, default=8, doc="attempts of the rejection method")
     event_shape: ClassVar = (2,)
     measure: ClassVar = "area"
 
     def __post_init__(self):
         check_choice("UniformDisk", "method", self.method, ("concentric", "polar", "rejection"))
-        check_parameter("UniformDisk", "tries", self.tries, 1, 4096)
 
     @property
     def uniform_dims(self) -> int:
@@ -61,6 +59,7 @@ class UniformDisk(Sampler):
     def has_inverse(self) -> bool:
         return self.method != "rejection"
 
+    @point_method
     def warp(self, u):
         if self.method == "polar":
             return _polar(u)
@@ -71,16 +70,19 @@ class UniformDisk(Sampler):
         accepted = jnp.sum(points * points, axis=-1) < 1.0
         return select_first(points, accepted, _polar(u[..., -2:]))
 
+    @point_method
     def warp_with_pdf(self, u):
         x = self.warp(u)
         return x, jnp.full(x.shape[:-1], INV_PI, x.dtype)
 
+    @point_method
     def pdf(self, x):
         # A point warped from u₀ -> 1 may land an ulp or two outside r = 1 (cos² + sin² rounds).
         slack = 8.0 * np.finfo(jnp.result_type(x, float)).eps
         inside = jnp.sum(x * x, axis=-1) <= 1.0 + slack
         return jnp.where(inside, INV_PI, 0.0).astype(jnp.result_type(x, float))
 
+    @point_method
     def inverse(self, x):
         if self.method == "polar":
             r2 = jnp.clip(jnp.sum(x * x, axis=-1), 0.0, 1.0)

@@ -33,6 +33,7 @@ class Directions:
     breaks: tuple = ()
     n_azimuth_quadrature: int = 64
     event_shape = (3,)
+    measure = "solid angle"
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -55,6 +56,7 @@ class Interval:
     order: int = GAUSS_ORDER
     quadrature_high: float | None = None
     event_shape = ()
+    measure = "length"
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -77,6 +79,12 @@ class Box:
     def event_shape(self):
         return (len(self.axes),)
 
+    @property
+    def measure(self) -> str:
+        """Lebesgue measure on R^d: length, area, volume, or "d-volume"."""
+        d = len(self.axes)
+        return {1: "length", 2: "area", 3: "volume"}.get(d, f"{d}-volume")
+
 
 @dataclasses.dataclass(frozen=True)
 class Disk:
@@ -87,6 +95,7 @@ class Disk:
 
     n_azimuth_quadrature: int = 64
     event_shape = (2,)
+    measure = "area"
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -104,6 +113,8 @@ class Triangle:
     order: int = GAUSS_ORDER
     n_panels: int = 8
 
+    measure = "area"
+
     @property
     def event_shape(self):
         return (len(self.a),)
@@ -115,3 +126,4 @@ class DiscreteSet:
 
     size: int
     event_shape = ()
+    measure = "counting"

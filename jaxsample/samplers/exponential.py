@@ -14,9 +14,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
-from .._core.params import as_parameter, check_parameter, concrete_value, in_range
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method
+from .._core.params import concrete_value
+from .._core.pytree import parameter
 from .domain import Interval
 
 
@@ -38,7 +38,6 @@ def _log1p_ratio(y):
     return jnp.where(tiny, 1.0, jnp.log1p(y_safe) / y_safe)
 
 
-@pytree_dataclass
 class Exponential(Sampler):
     """p(t) = σ e^{-σ t} on t >= 0 (length measure), 0 for t < 0; σ = `rate`.
 
@@ -47,38 +46,33 @@ class Exponential(Sampler):
     to 1 and returns 0 for every u below an ulp), and is finite for u < 1 (t <= 16.6/σ in float32).
     The density from u is σ(1 - u), exactly; the inverse is u = -expm1(-σt).
 
-    Parameter: `rate` σ > 0 and finite (checked when concrete); tested from 1e-6 to 1e6 in float32
-    and float64. A traced σ <= 0 makes every value and gradient NaN (`Sampler`, "Invalid parameters").
+    In float32 a rate below about 1e-37 gives distances beyond float range.
     """
 
-    rate: jax.Array
+    rate: jax.Array = parameter(0.0, np.inf, low_open=True, high_open=True, doc="σ", hard_cases=(1e-6, 1e6))
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
-
     measure: ClassVar = "length"
-    parameter_ranks: ClassVar = {"rate": 0}
 
-    def __post_init__(self):
-        object.__setattr__(self, "rate", as_parameter(self.rate))
-        check_parameter("Exponential", "rate", self.rate, 0.0, np.inf, low_open=True, high_open=True)
-
-    def _parameters_valid(self):
-        return in_range(self.rate, 0.0, np.inf, low_open=True, high_open=True)
-
+    @point_method
     def warp(self, u):
         return -jnp.log1p(-u[..., 0]) / self.rate
 
+    @point_method
     def warp_with_pdf(self, u):
         u0 = u[..., 0]
         return -jnp.log1p(-u0) / self.rate, self.rate * (1.0 - u0)
 
+    @point_method
     def log_pdf(self, t):
         inside = t >= 0
         return jnp.where(inside, jnp.log(self.rate) - self.rate * jnp.where(inside, t, 0.0), -jnp.inf)
 
+    @point_method
     def pdf(self, t):
         return jnp.exp(self.log_pdf(t))
 
+    @point_method
     def inverse(self, t):
         return (-jnp.expm1(-self.rate * jnp.maximum(t, 0.0)))[..., None]
 
@@ -89,7 +83,6 @@ class Exponential(Sampler):
         return Interval(0.0, np.inf, quadrature_high=_TAIL_MEAN_FREE_PATHS / float(rate))
 
 
-@pytree_dataclass
 class TruncatedExponential(Sampler):
     """p(t) = σ e^{-σ t} / (1 - e^{-σ T}) on [0, T] (length measure), 0 outside; T = `t_max`.
 
@@ -100,50 +93,42 @@ class TruncatedExponential(Sampler):
     two vanishing numbers, 1 - e^{-σT} cancelling first. The density is e^{-σt} / (T g(z)) and the
     inverse u = (t/T) g(σt)/g(σT).
 
-    Parameters: `rate` σ > 0 and `t_max` T > 0, finite (checked when concrete); σ tested from
-    1e-6 to 1e6. The formulas tend to the uniform density on [0, T] as σ -> 0; σ = 0 itself is
+    σ is tested from 1e-6 to 1e6. The formulas tend to the uniform density on [0, T] as σ -> 0; σ = 0 itself is
     outside the range (traced, it makes every value NaN, as any invalid parameter does).
     """
 
-    rate: jax.Array
-    t_max: jax.Array
+    rate: jax.Array = parameter(0.0, np.inf, low_open=True, high_open=True, doc="σ", hard_cases=(1e-6, 1e6))
+    t_max: jax.Array = parameter(0.0, np.inf, low_open=True, high_open=True, doc="T")
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
-
     measure: ClassVar = "length"
-    parameter_ranks: ClassVar = {"rate": 0, "t_max": 0}
-
-    def __post_init__(self):
-        object.__setattr__(self, "rate", as_parameter(self.rate))
-        object.__setattr__(self, "t_max", as_parameter(self.t_max))
-        check_parameter("TruncatedExponential", "rate", self.rate, 0.0, np.inf, low_open=True, high_open=True)
-        check_parameter("TruncatedExponential", "t_max", self.t_max, 0.0, np.inf, low_open=True, high_open=True)
-
-    def _parameters_valid(self):
-        return (in_range(self.rate, 0.0, np.inf, low_open=True, high_open=True)
-                & in_range(self.t_max, 0.0, np.inf, low_open=True, high_open=True))
 
     def _mass_ratio(self):
         return _expm1_ratio(self.rate * self.t_max)
 
+    @point_method
     def warp(self, u):
         u0 = u[..., 0]
         g = self._mass_ratio()
         t = self.t_max * u0 * g * _log1p_ratio(-u0 * (self.rate * self.t_max) * g)
         return jnp.clip(t, 0.0, self.t_max)
 
+    @point_method
     def warp_with_pdf(self, u):
         t = self.warp(u)
         return t, self.pdf(t)
 
+    @point_method
     def log_pdf(self, t):
         inside = (t >= 0) & (t <= self.t_max)
         t_safe = jnp.where(inside, t, 0.0)
         return jnp.where(inside, -self.rate * t_safe - jnp.log(self.t_max * self._mass_ratio()), -jnp.inf)
 
+    @point_method
     def pdf(self, t):
         return jnp.exp(self.log_pdf(t))
 
+    @point_method
     def inverse(self, t):
         t = jnp.clip(t, 0.0, self.t_max)
         u = (t / self.t_max) * _expm1_ratio(self.rate * t) / self._mass_ratio()

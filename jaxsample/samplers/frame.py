@@ -13,18 +13,17 @@ import jax
 import jax.numpy as jnp
 
 from .._core.params import as_parameter, check_number, concrete_value
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, parameter
 
 import numpy as np
 
 
-@pytree_dataclass
-class Frame:
+class Frame(Pytree):
     """A right-handed orthonormal frame (x, y, z), each a (..., 3) array; `z` is the normal."""
 
-    x: jax.Array
-    y: jax.Array
-    z: jax.Array
+    x: jax.Array = parameter(rank=1)
+    y: jax.Array = parameter(rank=1)
+    z: jax.Array = parameter(rank=1, doc="the normal")
 
     @classmethod
     def from_normal(cls, normal: jax.Array) -> "Frame":

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler, refuse_class
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method, refuse_class
+from .._core.pytree import parameter
 from .discrete import as_array, cdf_from_weights, check_weights, select_with_remainder, valid_tables
 
 
@@ -26,7 +25,6 @@ def _merged_domain(domains):
     return dataclasses.replace(first, **changes)
 
 
-@pytree_dataclass
 class Mixture(Sampler):
     """p(x) = Σ_k w_k p_k(x) with w normalised: pick component k with probability w_k, sample it.
 
@@ -43,17 +41,16 @@ class Mixture(Sampler):
     """
 
     components: tuple
-    weights: jax.Array
-    parameter_ranks: ClassVar = {"weights": 1}
+    weights: jax.Array = parameter(rank=1, doc="one per component, >= 0, not all 0")
 
     def __post_init__(self):
-        object.__setattr__(self, "weights", as_array(self.weights))
+        self.weights = as_array(self.weights)
         if isinstance(self.components, (tuple, list)):
             for c in self.components:
                 refuse_class("Mixture", "components", c)
         if not isinstance(self.components, (tuple, list)) or not all(isinstance(c, Sampler) for c in self.components):
             return  # rebuilt by JAX with placeholders
-        object.__setattr__(self, "components", tuple(self.components))
+        self.components = tuple(self.components)
         if not self.components:
             raise ValueError("Mixture: parameter 'components' must hold at least one sampler")
         if len({tuple(c.event_shape) for c in self.components}) != 1:
@@ -86,6 +83,7 @@ class Mixture(Sampler):
         w = jnp.asarray(self.weights)
         return w / jnp.sum(w)
 
+    @point_method
     def warp(self, u):
         index, remainder = select_with_remainder(cdf_from_weights(jnp.asarray(self.weights)), u[..., 0])
         u = jnp.concatenate([remainder[..., None], u[..., 1:]], axis=-1)
@@ -96,6 +94,7 @@ class Mixture(Sampler):
         index = index.reshape(index.shape + (1,) * len(self.event_shape))
         return jax.lax.select_n(jnp.broadcast_to(index, outputs[0].shape), *outputs)
 
+    @point_method
     def pdf(self, x):
         pmf = self._pmf()
         return sum(pmf[k] * c.pdf(x) for k, c in enumerate(self.components))

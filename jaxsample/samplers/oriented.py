@@ -6,13 +6,11 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .base import Sampler, WrapsSampler, refuse_class
+from .base import Sampler, WrapsSampler, point_method, refuse_class
 from .._core.params import concrete_value
-from .._core.pytree import pytree_dataclass
 from .frame import Frame
 
 
-@pytree_dataclass
 class Oriented(WrapsSampler):
     """`base` rotated by the Duff et al. frame of `normal`: x = F · base.warp(u).
 
@@ -28,7 +26,6 @@ class Oriented(WrapsSampler):
     base: Sampler
     frame: Frame
     event_shape: ClassVar = (3,)
-    parameter_ranks: ClassVar = {"frame": 1}
 
     def _parameters_valid(self):
         # A zero-length or non-finite normal (traced) gives a NaN frame.
@@ -54,26 +51,31 @@ class Oriented(WrapsSampler):
                              f"of shape {tuple(jnp.shape(frame.z))}) must broadcast (equal, or 1 or missing where "
                              f"they differ): give one normal, normals of shape {base_batch + (3,)}, or a base "
                              f"without a batch") from None
-        object.__setattr__(self, "base", base)
-        object.__setattr__(self, "frame", frame)
+        self.base = base
+        self.frame = frame
 
     @property
     def normal(self):
         return self.frame.z
 
+    @point_method
     def warp(self, u):
         return self.frame.to_world(self.base.warp(u))
 
+    @point_method
     def warp_with_pdf(self, u):
         local, p = self.base.warp_with_pdf(u)
         return self.frame.to_world(local), p
 
+    @point_method
     def pdf(self, x):
         return self.base.pdf(self.frame.to_local(x))
 
+    @point_method
     def log_pdf(self, x):
         return self.base.log_pdf(self.frame.to_local(x))
 
+    @point_method
     def inverse(self, x):
         return self.base.inverse(self.frame.to_local(x))
 

@@ -7,15 +7,13 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from .base import Sampler
-from .._core.params import as_parameter, check_parameter, in_range
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method
+from .._core.pytree import parameter
 from .domain import Directions
 from .._core.numerics import (INV_2PI, azimuth_fraction, direction_from_one_minus_cos,
     one_minus_cos_theta, one_minus_epsilon)
 
 
-@pytree_dataclass
 class PhongLobe(Sampler):
     """cos^n lobe about +z: p(ω) = (n + 1)/(2π) cos^n θ over solid angle on z >= 0, 0 below.
 
@@ -27,37 +25,31 @@ class PhongLobe(Sampler):
     1 - μ = -expm1(log ξ/(n+1)) and builds sin² θ = (1 - μ)(1 + μ) from it; the density uses
     log μ = log1p(-(1 - μ)) with 1 - μ taken from x and y (`one_minus_cos_theta`), never from z.
 
-    Parameter: `exponent` n in [0, 1e7] (checked when concrete).
     """
 
-    exponent: jax.Array
+    exponent: jax.Array = parameter(0.0, 1e7, doc="the exponent n")
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
     periodic_dims: ClassVar = (1,)
 
     measure: ClassVar = "solid angle"
-    parameter_ranks: ClassVar = {"exponent": 0}
-
-    def __post_init__(self):
-        object.__setattr__(self, "exponent", as_parameter(self.exponent))
-        check_parameter("PhongLobe", "exponent", self.exponent, 0.0, 1e7)
-
-    def _parameters_valid(self):
-        return in_range(self.exponent, 0.0, 1e7)
 
     def _log_cos_from_u(self, u0):
         return jnp.log1p(-u0) / (self.exponent + 1.0)
 
+    @point_method
     def warp(self, u):
         log_cos = self._log_cos_from_u(u[..., 0])
         return direction_from_one_minus_cos(-jnp.expm1(log_cos), u[..., 1])
 
+    @point_method
     def warp_with_pdf(self, u):
         log_cos = self._log_cos_from_u(u[..., 0])
         x = direction_from_one_minus_cos(-jnp.expm1(log_cos), u[..., 1])
         n = self.exponent
         return x, (n + 1.0) * INV_2PI * jnp.exp(n * log_cos)
 
+    @point_method(batched=False)
     def measure_valued_pair(self, u):
         """(x, x', c) for the measure-valued derivative in the exponent, from u (..., 3).
 
@@ -75,6 +67,7 @@ class PhongLobe(Sampler):
         x_product = direction_from_one_minus_cos(-jnp.expm1(log_cos_product), u[..., 1])
         return x, x_product, 1.0 / (self.exponent + 1.0)
 
+    @point_method
     def log_pdf(self, x):
         n = self.exponent
         upper = x[..., 2] > 0
@@ -88,9 +81,11 @@ class PhongLobe(Sampler):
         horizon = jnp.where(n == 0, jnp.log1p(n) - jnp.log(2.0 * jnp.pi), -jnp.inf)
         return jnp.where(upper, inside, jnp.where(x[..., 2] == 0, horizon, -jnp.inf))
 
+    @point_method
     def pdf(self, x):
         return jnp.exp(self.log_pdf(x))
 
+    @point_method
     def inverse(self, x):
         # u₀ = 1 - μ^{n+1} = -expm1((n+1) log μ), with log μ from the accurate 1 - μ.
         t = jnp.clip(one_minus_cos_theta(x), 0.0, 1.0)

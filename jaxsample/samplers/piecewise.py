@@ -13,9 +13,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
+from .base import Sampler, point_method
 from .._core.params import concrete_value
-from .._core.pytree import pytree_attributes
+from .._core.pytree import parameter
 from .discrete import (as_array, check_weights, normalized_tables, select_rows_with_remainder, valid_tables,
     select_with_remainder)
 from .domain import Box, Interval
@@ -51,7 +51,6 @@ def _cdf_before(cdf, index):
     return jnp.where(index > 0, cdf[..., jnp.maximum(index - 1, 0)], 0.0)
 
 
-@pytree_attributes(leaves=("pmf", "cdf"))
 class PiecewiseConstant1D(Sampler):
     """Density p(x) = K f_i / Σ f on bin i = [i/K, (i+1)/K) of [0, 1] (length measure), 0 outside.
 
@@ -61,10 +60,11 @@ class PiecewiseConstant1D(Sampler):
     float64 NumPy when the values are concrete, in JAX otherwise.
     """
 
+    pmf: jax.Array = parameter(rank=1, doc="the bins' probabilities")
+    cdf: jax.Array = parameter(rank=1)
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
     measure: ClassVar = "length"
-    parameter_ranks: ClassVar = {"pmf": 1, "cdf": 1}
     batchable: ClassVar = False
 
     def _parameters_valid(self):
@@ -84,14 +84,17 @@ class PiecewiseConstant1D(Sampler):
     def size(self) -> int:
         return self.pmf.shape[-1]
 
+    @point_method
     def warp(self, u):
         index, remainder = select_with_remainder(self.cdf, u[..., 0])
         return _place_in_bin(index, remainder, self.size)
 
+    @point_method
     def pdf(self, x):
         n = self.size
         return jnp.where(_in_unit_interval(x), n * self.pmf[_bin_index(x, n)], 0.0).astype(jnp.result_type(x, float))
 
+    @point_method
     def inverse(self, x):
         n = self.size
         index = _bin_index(x, n)
@@ -103,7 +106,6 @@ class PiecewiseConstant1D(Sampler):
         return Interval(0.0, 1.0, breaks=np.linspace(0.0, 1.0, self.size + 1), graded=False, order=1)
 
 
-@pytree_attributes(leaves=("marginal_pmf", "marginal_cdf", "conditional_pmf", "conditional_cdf"))
 class PiecewiseConstant2D(Sampler):
     """Density p(x, y) = f[j, i] / mean(f) on [0, 1]² (area measure): row j covers y in
     [j/R, (j+1)/R), column i covers x in [i/C, (i+1)/C) for `values` of shape (R, C).
@@ -115,10 +117,13 @@ class PiecewiseConstant2D(Sampler):
     density by 2π² sin θ to get a solid-angle density.
     """
 
+    marginal_pmf: jax.Array = parameter(rank=1, doc="the rows' probabilities")
+    marginal_cdf: jax.Array = parameter(rank=1)
+    conditional_pmf: jax.Array = parameter(rank=2, doc="each row's columns' probabilities")
+    conditional_cdf: jax.Array = parameter(rank=2)
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (2,)
     measure: ClassVar = "area"
-    parameter_ranks: ClassVar = {"marginal_pmf": 1, "marginal_cdf": 1, "conditional_pmf": 2, "conditional_cdf": 2}
     batchable: ClassVar = False
 
     def _parameters_valid(self):
@@ -141,12 +146,14 @@ class PiecewiseConstant2D(Sampler):
     def __repr__(self):
         return f"PiecewiseConstant2D(shape={self.shape})"
 
+    @point_method
     def warp(self, u):
         rows, columns = self.shape
         row, remainder_y = select_with_remainder(self.marginal_cdf, u[..., 1])
         column, remainder_x = select_rows_with_remainder(self.conditional_cdf, row, u[..., 0])
         return jnp.stack([_place_in_bin(column, remainder_x, columns), _place_in_bin(row, remainder_y, rows)], axis=-1)
 
+    @point_method
     def pdf(self, x):
         rows, columns = self.shape
         row = _bin_index(x[..., 1], rows)
@@ -155,6 +162,7 @@ class PiecewiseConstant2D(Sampler):
         density = rows * columns * self.marginal_pmf[row] * self.conditional_pmf[row, column]
         return jnp.where(inside, density, 0.0).astype(jnp.result_type(x, float))
 
+    @point_method
     def inverse(self, x):
         rows, columns = self.shape
         row = _bin_index(x[..., 1], rows)

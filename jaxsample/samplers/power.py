@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
-from .._core.params import as_parameter, check_choice, check_parameter, concrete_value, in_range
+from .base import Sampler, point_method
+from .._core.params import check_choice, concrete_value
+from .._core.pytree import parameter, static_field
 from .domain import Interval
 from .._core.numerics import safe_log, safe_pow
 
@@ -29,48 +33,51 @@ class Power(Sampler):
     A concrete exponent outside [0, 1e6] (or a non-integer one for "max") raises ValueError.
     """
 
-    event_shape = ()
-    measure = "length"
-    parameter_ranks = {"exponent": 0}
+    exponent: jax.Array = parameter(0.0, 1e6, doc="n")
+    method: str = static_field()
+    # "max" draws n + 1 uniforms: its n is a static int, which also sets `uniform_dims`.
+    max_exponent: int | None = static_field()
+    event_shape: ClassVar = ()
+    measure: ClassVar = "length"
 
     def __init__(self, exponent, method: str = "inversion"):
         check_choice("Power", "method", method, ("inversion", "max"))
-        exponent = as_parameter(exponent)
-        check_parameter("Power", "exponent", exponent, 0.0, 1e6)
         self.method = method
+        self.exponent = exponent
+        self.max_exponent = None
         if method == "max":
-            n = concrete_value(exponent)
+            n = concrete_value(self.exponent)
             if n is None or n.ndim != 0 or n != np.floor(n):
                 raise ValueError(f"Power: method 'max' needs a concrete integer 'exponent' in [0, 1e6]; got {exponent!r}")
-            exponent = int(n)
-        self.exponent = exponent
+            self.max_exponent = int(n)
 
-    def _tree_fields(self):
-        """The pytree split (jaxsample._core.pytree): "max" needs its integer exponent static."""
-        return ((), ("method", "exponent")) if self.method == "max" else (("exponent",), ("method",))
+    def _n(self):
+        return self.max_exponent if self.method == "max" else self.exponent
 
     def __repr__(self):
         return f"Power(exponent={self.exponent!r}, method={self.method!r})"
 
     @property
     def uniform_dims(self) -> int:
-        return 1 if self.method == "inversion" else self.exponent + 1
+        return 1 if self.method == "inversion" else self.max_exponent + 1
 
     @property
     def has_inverse(self) -> bool:
         return self.method == "inversion"
 
     def _parameters_valid(self):
-        return in_range(self.exponent, 0.0, 1e6) if self.method == "inversion" else None
+        return super()._parameters_valid() if self.method == "inversion" else None
 
     def _log_x(self, u0):
         return jnp.log1p(-u0) / (self.exponent + 1.0)
 
+    @point_method
     def warp(self, u):
         if self.method == "max":
             return jnp.max(u, axis=-1)
         return jnp.exp(self._log_x(u[..., 0]))
 
+    @point_method
     def warp_with_pdf(self, u):
         if self.method == "max":
             x = self.warp(u)
@@ -79,14 +86,16 @@ class Power(Sampler):
         n = self.exponent
         return jnp.exp(log_x), (n + 1.0) * jnp.exp(n * log_x)
 
+    @point_method
     def pdf(self, x):
-        n = self.exponent
+        n = self._n()
         inside = (x >= 0) & (x <= 1)
         density = (n + 1.0) * safe_pow(jnp.where(inside, x, 0.0), n)
         return jnp.where(inside, density, 0.0).astype(jnp.result_type(x, float))
 
+    @point_method
     def log_pdf(self, x):
-        n = self.exponent
+        n = self._n()
         inside = (x >= 0) & (x <= 1)
         # n log x with log 0 = -inf would give 0 * -inf = NaN at n = 0; safe_log of the pdf avoids it.
         log_x = safe_log(jnp.where(inside, x, 1.0))
@@ -95,6 +104,7 @@ class Power(Sampler):
         at_zero = jnp.where(n == 0, 0.0, -jnp.inf)
         return jnp.where(positive, value, jnp.where(inside, at_zero, -jnp.inf))
 
+    @point_method
     def inverse(self, x):
         if self.method == "max":
             return super().inverse(x)

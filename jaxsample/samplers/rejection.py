@@ -8,9 +8,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler, draw, key_and_shape, refuse_class
-from .._core.params import check_parameter, in_range
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, draw, key_and_shape, point_method, refuse_class
+from .._core.pytree import Pytree, parameter, static_field
 
 
 def select_first(candidates, accepted, fallback):
@@ -31,8 +30,7 @@ def select_first(candidates, accepted, fallback):
     return out
 
 
-@pytree_dataclass
-class RejectionInfo:
+class RejectionInfo(Pytree):
     """Per sample: whether some try was accepted (`accepted`), and how many of the `tries`
     proposals passed the test (`n_passed`; each passes with probability exactly 1/bound)."""
 
@@ -40,7 +38,6 @@ class RejectionInfo:
     n_passed: jax.Array
 
 
-@pytree_dataclass(static=("target_pdf", "tries", "support"))
 class Rejection(Sampler):
     """Rejection sampling of a normalised target density p from a proposal q with p <= M q.
 
@@ -66,20 +63,17 @@ class Rejection(Sampler):
     """
 
     proposal: Sampler
-    target_pdf: Callable
-    bound: Any
-    tries: int = 16
+    target_pdf: Callable = static_field()
+    bound: Any = parameter(1.0, np.inf, high_open=True, doc="M, with p <= M q")
+    tries: int = parameter(1, 4096, static=True, default=16)
     fallback: Sampler | None = None
-    support: Any = None
+    support: Any = static_field(default=None)
 
     def __post_init__(self):
         refuse_class("Rejection", "proposal", self.proposal)
         refuse_class("Rejection", "fallback", self.fallback)
-        check_parameter("Rejection", "bound", self.bound, 1.0, np.inf, high_open=True)
-        check_parameter("Rejection", "tries", self.tries, 1, 4096)
 
     batchable: ClassVar = False
-    parameter_ranks: ClassVar = {"bound": 0}
 
     @property
     def event_shape(self):
@@ -88,9 +82,6 @@ class Rejection(Sampler):
     @property
     def measure(self):
         return self.proposal.measure
-
-    def _parameters_valid(self):
-        return in_range(self.bound, 1.0, np.inf, high_open=True)
 
     @property
     def _tail_dims(self) -> int:
@@ -105,6 +96,7 @@ class Rejection(Sampler):
         """ε = (1 - 1/M)^tries: the probability that every try is rejected."""
         return (1.0 - 1.0 / jnp.asarray(self.bound)) ** self.tries
 
+    @point_method(batched=False)
     def warp_with_info(self, u):
         dims = self.proposal.uniform_dims
         blocks = u[..., : self.tries * (dims + 1)].reshape(u.shape[:-1] + (self.tries, dims + 1))
@@ -117,6 +109,7 @@ class Rejection(Sampler):
         out = select_first(x, passed, spare) + 0.0 * jnp.asarray(self.bound, x.dtype)
         return out, RejectionInfo(jnp.any(passed, axis=-1), jnp.sum(passed, axis=-1, dtype=jnp.int32))
 
+    @point_method
     def warp(self, u):
         return self.warp_with_info(u)[0]
 
@@ -125,10 +118,13 @@ class Rejection(Sampler):
         return draw(self, *key_and_shape(key, sample_shape, seed, shape, "sample_with_info"), dtype,
                     "warp_with_info")
 
+    @point_method
     def pdf(self, x):
         p = self.target_pdf(x)
         if self.fallback is not None:
-            return p
+            # The density is p exactly, whatever M; 0 * M carries an invalid M's NaN into it (the
+            # invalid-parameter rule), as the fall-through term does without a fallback.
+            return p + 0.0 * self.bound
         epsilon = self.fall_through_probability
         return (1.0 - epsilon) * p + epsilon * self.proposal.pdf(x)
 

@@ -6,16 +6,15 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .base import Sampler
-from .._core.params import check_choice, check_parameter
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method
+from .._core.params import check_choice
+from .._core.pytree import parameter, static_field
 from .domain import Directions
 from .._core.numerics import (INV_2PI, INV_4PI, azimuth_fraction, one_minus_cos_theta, safe_sqrt,
     spherical_direction)
 from .rejection import select_first
 
 
-@pytree_dataclass(static=("method", "tries"))
 class UniformSphere(Sampler):
     """Uniform on the unit sphere S²: p(ω) = 1/(4π) over solid angle.
 
@@ -30,15 +29,14 @@ class UniformSphere(Sampler):
     This form has no inverse.
     """
 
-    method: str = "inversion"
-    tries: int = 16
+    method: str = static_field(default="inversion")
+    tries: int = parameter(1, 4096, static=True, default=16, doc="attempts of the rejection method")
     event_shape: ClassVar = (3,)
     measure: ClassVar = "solid angle"
     periodic_dims: ClassVar = (1,)
 
     def __post_init__(self):
         check_choice("UniformSphere", "method", self.method, ("inversion", "rejection"))
-        check_parameter("UniformSphere", "tries", self.tries, 1, 4096)
 
     @property
     def uniform_dims(self) -> int:
@@ -49,6 +47,7 @@ class UniformSphere(Sampler):
         sin_theta = 2.0 * safe_sqrt(u0 * (1.0 - u0))
         return spherical_direction(sin_theta, 1.0 - 2.0 * u0, u1)
 
+    @point_method
     def warp(self, u):
         if self.method == "inversion":
             return self._inversion(u)
@@ -60,9 +59,11 @@ class UniformSphere(Sampler):
         chosen, chosen_r2 = select_first((points, r2), accepted, (fallback, jnp.ones_like(r2[..., 0])))
         return chosen / jnp.sqrt(chosen_r2)[..., None]
 
+    @point_method
     def pdf(self, x):
         return jnp.full(x.shape[:-1], INV_4PI, dtype=jnp.result_type(x, float))
 
+    @point_method
     def inverse(self, x):
         if self.method != "inversion":
             return super().inverse(x)
@@ -77,7 +78,6 @@ class UniformSphere(Sampler):
         return Directions()
 
 
-@pytree_dataclass
 class UniformHemisphere(Sampler):
     """Uniform on the upper hemisphere z >= 0: p(ω) = 1/(2π) over solid angle, 0 below.
 
@@ -90,13 +90,16 @@ class UniformHemisphere(Sampler):
     measure: ClassVar = "solid angle"
     periodic_dims: ClassVar = (1,)
 
+    @point_method
     def warp(self, u):
         u0 = u[..., 0]
         return spherical_direction(safe_sqrt(u0 * (2.0 - u0)), 1.0 - u0, u[..., 1])
 
+    @point_method
     def pdf(self, x):
         return jnp.where(x[..., 2] >= 0, INV_2PI, 0.0).astype(jnp.result_type(x, float))
 
+    @point_method
     def inverse(self, x):
         return jnp.stack([one_minus_cos_theta(x), azimuth_fraction(x[..., 1], x[..., 0])], axis=-1)
 

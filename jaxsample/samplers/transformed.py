@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
 
-from .base import Sampler, WrapsSampler, refuse_class
-from .._core.pytree import pytree_attributes
+from .base import Sampler, WrapsSampler, point_method, refuse_class
+from .._core.pytree import static_field
 
 
 def _map_points(fn, x, event_ndim):
@@ -20,7 +20,6 @@ def _map_points(fn, x, event_ndim):
     return out.reshape(batch + out.shape[1:])
 
 
-@pytree_attributes(leaves=("base",), static=("forward", "backward", "support", "output_measure"))
 class Transformed(WrapsSampler):
     """y = T(x) with x from `base`: p_y(y) = p_x(T⁻¹(y)) / |det J_T(T⁻¹(y))|.
 
@@ -40,6 +39,12 @@ class Transformed(WrapsSampler):
     by default it is the base's when T keeps the dimension, unknown (None) when it maps onto a
     surface. `estimate_mis` needs it known.
     """
+
+    base: Sampler
+    forward: Callable = static_field()
+    backward: Callable = static_field()
+    support: Any = static_field()
+    output_measure: str | None = static_field()
 
     def __init__(self, base: Sampler, forward: Callable, inverse: Callable, domain=None, measure=None):
         refuse_class("Transformed", "base", base)
@@ -79,9 +84,11 @@ class Transformed(WrapsSampler):
         ok = jnp.isfinite(log_det)
         return jnp.where(ok, base_density * jnp.exp(-jnp.where(ok, log_det, 0.0)), 0.0)
 
+    @point_method
     def warp(self, u):
         return _map_points(self.forward, self.base.warp(u), len(self.base.event_shape))
 
+    @point_method
     def warp_with_pdf(self, u):
         x, base_density = self.base.warp_with_pdf(u)
         y = _map_points(self.forward, x, len(self.base.event_shape))
@@ -90,16 +97,19 @@ class Transformed(WrapsSampler):
     def _preimage(self, y):
         return _map_points(self.backward, y, len(self.event_shape))
 
+    @point_method
     def pdf(self, y):
         x = self._preimage(y)
         return self._density(self.base.pdf(x), self._log_abs_det(x))
 
+    @point_method
     def log_pdf(self, y):
         x = self._preimage(y)
         log_det = self._log_abs_det(x)
         ok = jnp.isfinite(log_det)
         return jnp.where(ok, self.base.log_pdf(x) - jnp.where(ok, log_det, 0.0), -jnp.inf)
 
+    @point_method
     def inverse(self, y):
         return self.base.inverse(self._preimage(y))
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
-from .._core.params import as_parameter, check_number, concrete_value
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method
+from .._core.params import concrete_value
+from .._core.pytree import parameter
 from .domain import Triangle
 from .._core.numerics import safe_div, safe_sqrt
 
@@ -29,7 +31,6 @@ def _along(v, unit_normal, dim):
     return v * unit_normal if dim == 2 else jnp.sum(v * unit_normal, axis=-1)
 
 
-@pytree_dataclass
 class UniformTriangle(Sampler):
     """Uniform on the triangle (a, b, c) in R² or R³: p = 1/area over area, 0 off the triangle.
 
@@ -50,21 +51,17 @@ class UniformTriangle(Sampler):
     distances, not as barycentric coordinates, so that thin triangles' own samples are inside.
     """
 
-    a: jax.Array
-    b: jax.Array
-    c: jax.Array
-    uniform_dims = 2
-    measure = "area"
-    parameter_ranks = {"a": 1, "b": 1, "c": 1}
+    a: jax.Array = parameter(rank=1, doc="a vertex, (2,) or (3,)")
+    b: jax.Array = parameter(rank=1, doc="a vertex")
+    c: jax.Array = parameter(rank=1, doc="a vertex")
+    uniform_dims: ClassVar[int] = 2
+    measure: ClassVar = "area"
 
     def _parameters_valid(self):
         vertices = jnp.stack(jnp.broadcast_arrays(*(jnp.asarray(v) for v in (self.a, self.b, self.c))))
         return jnp.all(jnp.isfinite(vertices)) & (self._normal()[1] > 0)
 
     def __post_init__(self):
-        for name in ("a", "b", "c"):
-            object.__setattr__(self, name, as_parameter(getattr(self, name)))
-            check_number("UniformTriangle", name, getattr(self, name))
         values = [concrete_value(v) for v in (self.a, self.b, self.c)]
         if any(v is None for v in values):
             return
@@ -108,12 +105,14 @@ class UniformTriangle(Sampler):
     def area(self):
         return 0.5 * self._normal()[1]
 
+    @point_method
     def warp(self, u):
         v = safe_sqrt(u[..., 0])
         weight_b = (v * (1.0 - u[..., 1]))[..., None]
         weight_c = (v * u[..., 1])[..., None]
         return self.a + weight_b * (jnp.asarray(self.b) - self.a) + weight_c * (jnp.asarray(self.c) - self.a)
 
+    @point_method
     def warp_with_pdf(self, u):
         x = self.warp(u)
         return x, jnp.broadcast_to(1.0 / self.area, x.shape[:-1]).astype(x.dtype)
@@ -130,6 +129,7 @@ class UniformTriangle(Sampler):
         plane = jnp.abs(jnp.sum(d * unit_normal, axis=-1)) if dim == 3 else jnp.zeros(x.shape[:-1], x.dtype)
         return e_a, e_b, e_c, plane, twice_area
 
+    @point_method
     def pdf(self, x):
         dtype = jnp.result_type(x, float)
         a, b, c = (jnp.asarray(v) for v in (self.a, self.b, self.c))
@@ -146,6 +146,7 @@ class UniformTriangle(Sampler):
                   & (plane <= tolerance * (1.0 + safe_div(longest * longest, twice_area))))
         return jnp.where(inside, 1.0 / (0.5 * twice_area), 0.0).astype(dtype)
 
+    @point_method
     def inverse(self, x):
         _, e_b, e_c, _, twice_area = self._edge_functions(x)
         weight_b = jnp.clip(e_b / twice_area, 0.0, 1.0)

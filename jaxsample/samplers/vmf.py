@@ -8,14 +8,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .base import Sampler
-from .._core.params import as_parameter, check_parameter, in_range
-from .._core.pytree import pytree_dataclass
+from .base import Sampler, point_method
+from .._core.pytree import parameter
 from .domain import Directions
 from .._core.numerics import azimuth_fraction, direction_from_one_minus_cos, one_minus_cos_theta
 
 
-@pytree_dataclass
 class VonMisesFisher(Sampler):
     """von Mises–Fisher about +z: p(ω) = κ e^{κ cos θ} / (4π sinh κ) over solid angle on S².
 
@@ -29,23 +27,13 @@ class VonMisesFisher(Sampler):
     at κ = 1e7, s = 1 and t = -log1p(-u₀)/κ. u₀ = 0 is the mode (+z). Near the antipode, reachable
     for small κ, 1 + cos θ is computed directly as log1p((1 - u₀) expm1(2κ)) / κ.
 
-    Parameter: `kappa` in [1e-6, 1e7] (checked when concrete; κ must be > 0).
     """
 
-    kappa: jax.Array
+    kappa: jax.Array = parameter(1e-6, 1e7, doc="the concentration κ")
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
     periodic_dims: ClassVar = (1,)
-
     measure: ClassVar = "solid angle"
-    parameter_ranks: ClassVar = {"kappa": 0}
-
-    def __post_init__(self):
-        object.__setattr__(self, "kappa", as_parameter(self.kappa))
-        check_parameter("VonMisesFisher", "kappa", self.kappa, 1e-6, 1e7)
-
-    def _parameters_valid(self):
-        return in_range(self.kappa, 1e-6, 1e7)
 
     def _s(self):
         return -jnp.expm1(-2.0 * self.kappa)
@@ -69,21 +57,26 @@ class VonMisesFisher(Sampler):
         far = t > 1.0
         return jnp.where(far, direct, 2.0 - t), jnp.where(far, 2.0 - direct, t)
 
+    @point_method
     def warp(self, u):
         one_plus_cos, t = self._one_plus_cos(u[..., 0])
         return direction_from_one_minus_cos(t, u[..., 1], one_plus_cos)
 
+    @point_method
     def warp_with_pdf(self, u):
         one_plus_cos, t = self._one_plus_cos(u[..., 0])
         x = direction_from_one_minus_cos(t, u[..., 1], one_plus_cos)
         return x, jnp.exp(self._log_normalizer() - self.kappa * t)
 
+    @point_method
     def log_pdf(self, x):
         return self._log_normalizer() - self.kappa * one_minus_cos_theta(x)
 
+    @point_method
     def pdf(self, x):
         return jnp.exp(self.log_pdf(x))
 
+    @point_method
     def inverse(self, x):
         u0 = -jnp.expm1(-self.kappa * one_minus_cos_theta(x)) / self._s()
         return jnp.stack([u0, azimuth_fraction(x[..., 1], x[..., 0])], axis=-1)

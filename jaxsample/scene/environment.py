@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..samplers.base import Sampler
-from .._core.pytree import pytree_attributes, pytree_dataclass
+from ..samplers.base import Sampler, point_method
+from .._core.pytree import Pytree
 from ..samplers.domain import Directions
 from .._core.numerics import azimuth_fraction, safe_div, spherical_direction
 from ..samplers.piecewise import PiecewiseConstant2D
@@ -34,8 +35,7 @@ def uv_from_direction(wi):
     return jnp.stack([azimuth_fraction(wi[..., 1], wi[..., 0]), t], axis=-1), sin_theta
 
 
-@pytree_attributes(leaves=("values", "distribution"))
-class EnvironmentMap:
+class EnvironmentMap(Pytree):
     """Radiance L(ω) = values[row, column] of a lat–long map of shape (H, W): row j covers polar
     angles θ in [πj/H, π(j+1)/H] about the world +z axis, column i covers φ in [2πi/W, 2π(i+1)/W].
 
@@ -51,7 +51,9 @@ class EnvironmentMap:
 
     # Its radiance jumps at texel edges, which stay put in ω whatever its values: a gradient is
     # biased only where samples move across them (`shade` says which strategies those are).
-    fixed_edges = True
+    fixed_edges: ClassVar[bool] = True
+    values: jax.Array
+    distribution: PiecewiseConstant2D
 
     def __init__(self, values):
         values = jnp.asarray(values)
@@ -90,7 +92,6 @@ class EnvironmentMap:
         return self.values[_texel(uv[..., 1], rows), _texel(uv[..., 0], columns)]
 
 
-@pytree_dataclass
 class EnvironmentDirections(Sampler):
     """An `EnvironmentMap`'s light sampler as a `Sampler` of directions (density over solid angle)."""
 
@@ -98,13 +99,16 @@ class EnvironmentDirections(Sampler):
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (3,)
 
+    @point_method
     def warp(self, u):
         return direction_from_uv(self.light.distribution.warp(u))
 
+    @point_method
     def warp_with_pdf(self, u):
         wi, _, pdf = self.light.sample(None, u)
         return wi, pdf
 
+    @point_method
     def pdf(self, x):
         return self.light.pdf(None, x)
 

@@ -5,14 +5,12 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._core.params import check_parameter
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, parameter
 from ..samplers.cosine import CosineHemisphere
 from .._core.numerics import INV_PI
 
 
-@pytree_dataclass
-class Lambertian:
+class Lambertian(Pytree):
     """f_r(ω_o, ω_i) = albedo / π for ω_o and ω_i both above the surface, 0 otherwise.
 
     Directions are in the local shading frame (the normal is +z), as in PBRT's BxDFs; `shade` turns
@@ -25,10 +23,7 @@ class Lambertian:
     Parameter: `albedo` in [0, 1] (checked when concrete).
     """
 
-    albedo: jax.Array
-
-    def __post_init__(self):
-        check_parameter("Lambertian", "albedo", self.albedo, 0.0, 1.0)
+    albedo: jax.Array = parameter(0.0, 1.0)
 
     def eval(self, wo: jax.Array, wi: jax.Array) -> jax.Array:
         """f_r for local directions (..., 3); 0 unless both are strictly above the surface."""

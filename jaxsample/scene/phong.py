@@ -5,8 +5,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._core.params import check_parameter
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, parameter
 from .._core.numerics import INV_2PI, safe_pow
 from ..samplers.oriented import Oriented
 from ..samplers.phong import PhongLobe
@@ -17,8 +16,7 @@ def reflect(wo: jax.Array) -> jax.Array:
     return wo * jnp.asarray([-1.0, -1.0, 1.0], dtype=jnp.result_type(wo, float))
 
 
-@pytree_dataclass
-class Phong:
+class Phong(Pytree):
     """f_r(ω_o, ω_i) = albedo (n + 2)/(2π) max(cos α, 0)^n, α the angle between ω_i and the mirror
     direction r of ω_o; 0 unless both directions are above the surface (local frame, normal +z).
 
@@ -39,12 +37,8 @@ class Phong:
     Parameters: `exponent` n in [0, 1e7], `albedo` in [0, 1] (checked when concrete).
     """
 
-    exponent: jax.Array
-    albedo: jax.Array
-
-    def __post_init__(self):
-        check_parameter("Phong", "exponent", self.exponent, 0.0, 1e7)
-        check_parameter("Phong", "albedo", self.albedo, 0.0, 1.0)
+    exponent: jax.Array = parameter(0.0, 1e7)
+    albedo: jax.Array = parameter(0.0, 1.0)
 
     def eval(self, wo: jax.Array, wi: jax.Array) -> jax.Array:
         """f_r for local directions (..., 3); 0 unless both are strictly above the surface."""

@@ -5,27 +5,21 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._core.params import check_parameter
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, parameter
 from .._core.numerics import INV_4PI
 from ..samplers.sphere import UniformSphere
 
 
-@pytree_dataclass
-class ConstantSky:
+class ConstantSky(Pytree):
     """L_i(ω) = radiance for every direction ω (the white furnace when radiance = 1).
 
     Light sampling draws ω uniformly on the sphere, p = 1/(4π) over solid angle. It does not know
     the surface normal, so half of its samples fall below the surface; a cosine-weighted BRDF
     sampler is the better strategy here, and MIS finds that out by itself.
 
-    Parameter: `radiance` >= 0 (checked when concrete).
     """
 
-    radiance: jax.Array
-
-    def __post_init__(self):
-        check_parameter("ConstantSky", "radiance", self.radiance, 0.0)
+    radiance: jax.Array = parameter(0.0)
 
     def sampler(self, point: jax.Array) -> UniformSphere:
         """The directional sampler of `sample` as seen from `point` (world frame)."""

@@ -5,14 +5,12 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._core.params import check_parameter
-from .._core.pytree import pytree_dataclass
+from .._core.pytree import Pytree, parameter
 from ..samplers.cone import UniformCone
 from ..samplers.oriented import Oriented
 
 
-@pytree_dataclass
-class SphereLight:
+class SphereLight(Pytree):
     """A sphere of radius r about `center` whose surface emits `radiance` L uniformly.
 
     From a point p at distance d > r the sphere covers the cone of directions about
@@ -35,12 +33,8 @@ class SphereLight:
     """
 
     center: jax.Array
-    radius: jax.Array
-    radiance: jax.Array
-
-    def __post_init__(self):
-        check_parameter("SphereLight", "radius", self.radius, 0.0, low_open=True)
-        check_parameter("SphereLight", "radiance", self.radiance, 0.0)
+    radius: jax.Array = parameter(0.0, low_open=True)
+    radiance: jax.Array = parameter(0.0)
 
     def sin2_theta_max(self, point):
         """sin² of the cone's half-angle from `point`: r²/d², clamped to 1 (inside the sphere)."""

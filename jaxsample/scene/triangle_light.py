@@ -7,9 +7,9 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from ..samplers.base import Sampler
-from .._core.params import check_parameter, concrete_value
-from .._core.pytree import pytree_dataclass
+from ..samplers.base import Sampler, point_method
+from .._core.params import concrete_value
+from .._core.pytree import Pytree, parameter
 from ..samplers.domain import Directions
 from .._core.numerics import safe_div
 from ..samplers.triangle import UniformTriangle
@@ -34,7 +34,6 @@ def _intersect(triangle: UniformTriangle, origin, direction):
     return hit, t
 
 
-@pytree_dataclass
 class TriangleLightDirections(Sampler):
     """Directions from `point` toward uniform points of a triangle: a directional sampler.
 
@@ -61,19 +60,23 @@ class TriangleLightDirections(Sampler):
         pdf = safe_div(distance2, self.triangle.area * jnp.abs(cos_light))
         return wi, pdf, cos_light
 
+    @point_method
     def warp(self, u):
         return self._direction_and_pdf(self.triangle.warp(u))[0]
 
+    @point_method
     def warp_with_pdf(self, u):
         wi, pdf, _ = self._direction_and_pdf(self.triangle.warp(u))
         return wi, pdf
 
+    @point_method
     def pdf(self, x):
         hit, t = _intersect(self.triangle, self.point, x)
         cos_light = jnp.sum(x * self._unit_normal(), axis=-1)
         pdf = safe_div(t * t, self.triangle.area * jnp.abs(cos_light))
         return jnp.where(hit, pdf, 0.0)
 
+    @point_method
     def inverse(self, x):
         """The uniforms whose warp is direction x: the triangle's inverse at the ray's hit point
         (the plane's, for a ray that misses: clipped into the unit square)."""
@@ -88,8 +91,7 @@ class TriangleLightDirections(Sampler):
         return Directions(axis=tuple(sum(vertices) / 3.0 - point))
 
 
-@pytree_dataclass
-class TriangleLight:
+class TriangleLight(Pytree):
     """Triangle (a, b, c) emitting `radiance` L from its front face, the side its normal
     (b − a) × (c − a) points to (counter-clockwise vertices seen from the lit side).
 
@@ -104,10 +106,9 @@ class TriangleLight:
     a: jax.Array
     b: jax.Array
     c: jax.Array
-    radiance: jax.Array
+    radiance: jax.Array = parameter(0.0)
 
     def __post_init__(self):
-        check_parameter("TriangleLight", "radiance", self.radiance, 0.0)
         UniformTriangle(self.a, self.b, self.c)  # validates the vertices when concrete
 
     @property

@@ -34,13 +34,14 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Union
+from typing import ClassVar, Union
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._core.params import resolve_float_dtype
+from .._core.pytree import Pytree, static_field
 from .index import Index, as_index, divmod_index, floordiv, index_range, index_value, less_than
 from .philox import (_STREAM_JITTER, _alignment, _STREAM_RANDOM, _STREAM_SCRAMBLE, _index_words, _philox_words,
                      _samples_per_block, _u32, bits_to_unit, philox4x32, random_bits, seed_from_key)
@@ -48,7 +49,7 @@ from .sobol import (_SOBOL_BITS, _SOBOL_INDEX_BITS, MAX_SOBOL_DIMS, _reverse_bit
                     _sobol_low_table, owen_scramble, sobol_points)
 
 
-class Source:
+class Source(Pytree):
     """A uniform source: `block(seed, offset, count, dims, dtype, total)` -> (count, dims) in (0, 1).
 
     `replicates` R > 1 means the points are R independent randomizations interleaved by index
@@ -65,8 +66,11 @@ class Source:
     subclass handles all three by reading them with `index.as_index(offset, count)`.
     """
 
-    replicates: int = 1
-    name: str = "source"
+    replicates: int = static_field(default=1)
+    name: ClassVar[str] = "source"
+
+    def __init__(self):
+        self.replicates = 1
 
     def block(self, seed, offset, count: int, dims: int, dtype=jnp.float32, total=None,
               aligned: int | bool = False) -> jax.Array:
@@ -99,7 +103,7 @@ class Source:
 class Random(Source):
     """Independent uniforms from Philox4x32-10 (see the module docstring); one replicate."""
 
-    name = "random"
+    name: ClassVar[str] = "random"
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         return bits_to_unit(random_bits(seed, offset, count, dims, aligned=aligned), dtype)
@@ -140,7 +144,7 @@ class Stratified(Source):
     largest float below 1 (a shift of at most one ulp on one point in 2^23).
     """
 
-    name = "stratified"
+    name: ClassVar[str] = "stratified"
 
     def __init__(self, replicates: int = 16):
         self.replicates = _check_replicates("Stratified", replicates)
@@ -213,7 +217,7 @@ class Sobol(Source):
     points then mostly serve the other dimensions: prefer more replicates (`replicates=`).
     """
 
-    name = "sobol"
+    name: ClassVar[str] = "sobol"
 
     def __init__(self, replicates: int = 16):
         self.replicates = _check_replicates("Sobol", replicates)

@@ -18,7 +18,6 @@ import pytest
 
 import jaxsample as js
 from jaxsample.samplers.base import Sampler
-from jaxsample._core.pytree import pytree_dataclass
 from jaxsample.estimators.diagnostics import empty_tail
 from jaxsample.estimators.engine import _empty_moments, _merge, _Moments
 from jaxsample.estimators.plain import estimate
@@ -35,9 +34,6 @@ K_SIGMA = 5.0  # |N(0,1)| > 5: FFR 5.7e-7 per check, with the exact sigma
 
 def cos3(w):
     return w[2] ** 3
-
-
-@pytree_dataclass
 class MisreportedCosine(Sampler):
     """A deliberately wrong sampler: cosine-distributed directions, density reported 1% high."""
 
@@ -174,7 +170,6 @@ def test_grad_attached_exact_and_detached_zero():
 
 
 def test_grad_finite_where_pdf_is_zero():
-    @pytree_dataclass
     class HalfZero(Sampler):
         width: jax.Array
         uniform_dims: ClassVar[int] = 2

@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 
 import jaxsample as js
+from jaxsample._core.pytree import static_field
 from jaxsample.samplers.base import Sampler
-from jaxsample._core.pytree import pytree_dataclass
 from jaxsample.estimators.gradients import expectation, expectation_values, integrand_values
 
 TWO_PI = 2.0 * math.pi
@@ -70,12 +70,11 @@ def cos_power(k):
 # ----------------------------------------------------------------------------------------------
 
 
-@pytree_dataclass(static=("detach",))
 class HalfDetached(Sampler):
     """The common bug: stop_gradient on only the sample ("sample") or only its density ("pdf")."""
 
     base: Sampler
-    detach: str = "sample"
+    detach: str = static_field(default="sample")
     event_shape = (3,)
 
     @property
@@ -94,9 +93,6 @@ class HalfDetached(Sampler):
             x = jax.lax.stop_gradient(x)
             return x, self.base.pdf(x)
         return x, jax.lax.stop_gradient(p)
-
-
-@pytree_dataclass
 class UnnormalizedPhong(Sampler):
     """Phong samples with log p missing its normaliser log(n + 1): a wrong score function."""
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import jaxsample as js
-from jaxsample._core.pytree import pytree_dataclass
+from jaxsample._core.pytree import Pytree
 
 jax.config.update("jax_debug_key_reuse", True)
 
@@ -116,10 +116,7 @@ def test_per_sample_values_keep_the_structure(which):
     np.testing.assert_allclose(np.asarray(tree["wave"]).real, flat[:, 3], rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(np.asarray(tree["wave"]).imag, flat[:, 4], rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(np.asarray(tree["high"]), flat[:, 5], rtol=1e-6)
-
-
-@pytree_dataclass
-class Radiance:
+class Radiance(Pytree):
     value: Any
     weight: Any
 

@@ -3,10 +3,6 @@
 from __future__ import annotations
 
 from jaxsample.samplers.base import Sampler
-from jaxsample._core.pytree import pytree_dataclass
-
-
-@pytree_dataclass
 class WrongWarp(Sampler):
     """Samples from `impostor` but claims the density of `truth`: the chi-square test must fail."""
 

@@ -18,7 +18,7 @@ import pytest
 
 import jaxsample as js
 from jaxsample import scene
-from jaxsample._core.pytree import pytree_dataclass
+from jaxsample._core.pytree import Pytree
 
 Z_LIMIT = 4.0
 POINT = jnp.zeros(3)
@@ -217,10 +217,7 @@ def test_every_strategy_is_unbiased(name):
     for strategy, est in estimates.items():
         assert np.isfinite(float(est.mean)) and est.n == 1 << 17
         assert abs(_z(est, reference)) < Z_LIMIT, (strategy, float(est.mean), float(est.stderr), reference)
-
-
-@pytree_dataclass
-class _MisreportedDensity:
+class _MisreportedDensity(Pytree):
     """A Phong BRDF whose sampler reports 1.25× its true density: the classic wrong-pdf bug."""
 
     inner: scene.Phong
