@@ -9,7 +9,7 @@ The folders are the layers (docs/design.md): `_core` (numerics, pytrees, paramet
 (the public checks), `quadrature`, `scene` and `report` (`python -m jaxsample report`). The public names are the ones below.
 """
 
-from . import edges, gradients, numerics, quadrature, scene, uniforms
+from . import edges, numerics, quadrature, scene, uniforms
 from .estimators import (Estimate, EstimateUntil, UnreliableEstimateWarning, estimate, estimate_antithetic, estimate_control_variate,
                          estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation,
                          expectation_grad, expectation_values, integrand_values)
@@ -53,5 +53,5 @@ __all__ = [
     # gradients
     "expectation", "expectation_values", "estimate_grad", "expectation_grad",
     # modules
-    "domains", "edges", "gradients", "numerics", "quadrature", "scene", "testing", "uniforms",
+    "domains", "edges", "numerics", "quadrature", "scene", "testing", "uniforms",
 ]
