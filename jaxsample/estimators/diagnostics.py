@@ -66,8 +66,13 @@ def tail_size(n):
     array for a traced count (`estimate_until`'s, known only at run time)."""
     if isinstance(n, (int, np.integer)):
         return int(max(1, min(n // 5, math.ceil(3.0 * math.sqrt(n)), MAX_TAIL)))
-    m = jnp.minimum(jnp.floor(n / 5.0), jnp.ceil(3.0 * jnp.sqrt(n)))
-    return jnp.clip(m, 1, MAX_TAIL).astype(jnp.int32)
+    return _tail_count(n, jnp).astype(jnp.int32)
+
+
+def _tail_count(n, xp):
+    """min(n/5, 3 √n) clipped to [1, MAX_TAIL], in NumPy (`xp = np`: concrete counts, no device
+    programs) or JAX (`xp = jnp`: traced counts)."""
+    return xp.clip(xp.minimum(xp.floor(n / 5.0), xp.ceil(3.0 * xp.sqrt(n))), 1, MAX_TAIL)
 
 
 def _pair_merge(a1, a2, b1, b2):
@@ -200,9 +205,9 @@ def _fit(tail, m, grid):
 def required_nonzero(n):
     """The fewest nonzero values an estimate of n samples must have to be judged: the M + 1 its
     tail fit uses (`tail_size`; n may be a traced count)."""
-    n = jnp.asarray(n, jnp.float32)
-    m = jnp.clip(jnp.minimum(jnp.floor(n / 5.0), jnp.ceil(3.0 * jnp.sqrt(n))), 1, MAX_TAIL)
-    return m + 1.0
+    if isinstance(n, (int, float, np.integer, np.floating, np.ndarray)):
+        return _tail_count(np.asarray(n, np.float32), np) + 1.0
+    return _tail_count(jnp.asarray(n, jnp.float32), jnp) + 1.0
 
 
 def verdict(mean, stderr, khat, nonzero, n, gradient: bool = False) -> jax.Array:
