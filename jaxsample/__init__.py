@@ -6,17 +6,23 @@ them into integrals with standard errors under `jit`, `vmap`, `grad` and a devic
 
 The folders are the layers (docs/design.md): `_core` (numerics, pytrees, parameter checks),
 `uniforms`, `samplers`, `estimators`, `edges` (discontinuities and their boundary terms), `testing`
-(the public checks), `quadrature`, `scene` and `report` (`python -m jaxsample report`). The public names are the ones below.
+(the public checks), `domains` (the checks' geometry), `quadrature`, `scene` and `report`
+(`python -m jaxsample report`).
+
+`__all__` is what a newcomer needs: the samplers, the estimators, `Estimate` and the modules. The
+rest is reachable through its module (`js.samplers.RejectionInfo`, `js.estimators.EstimateUntil`,
+`js.estimators.integrand_values`, `js.estimators.expectation_values`); `Frame`,
+`UnreliableEstimateWarning` and the pieces for writing a sampler of one's own (`Pytree`,
+`static_field`, `point_method`) are also attributes here, outside `__all__`.
 """
 
-from . import edges, numerics, quadrature, scene, uniforms
-from .estimators import (Estimate, EstimateUntil, UnreliableEstimateWarning, estimate, estimate_antithetic, estimate_control_variate,
-                         estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation,
-                         expectation_grad, expectation_values, integrand_values)
+from . import edges, estimators, numerics, quadrature, samplers, scene, uniforms
+from .estimators import (Estimate, UnreliableEstimateWarning, estimate, estimate_antithetic, estimate_control_variate,
+                         estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation, expectation_grad)
 from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, Oriented, PhongLobe,
-                       PiecewiseConstant1D, PiecewiseConstant2D, Power, Pytree, Rejection, RejectionInfo, Sampler,
-                       Transformed, parameter, point_method, static_field, TruncatedExponential, UniformBox, UniformCone, UniformDisk,
-                       UniformHemisphere, UniformSphere, UniformTriangle, VonMisesFisher)
+                       PiecewiseConstant1D, PiecewiseConstant2D, Power, Pytree, Rejection, Sampler, Transformed,
+                       TruncatedExponential, UniformBox, UniformCone, UniformDisk, UniformHemisphere, UniformSphere,
+                       UniformTriangle, VonMisesFisher, parameter, point_method, static_field)
 
 __version__ = "0.1.0"
 
@@ -38,20 +44,19 @@ def __dir__():
 __all__ = [
     # directional samplers (density over solid angle)
     "UniformSphere", "UniformHemisphere", "CosineHemisphere", "PhongLobe", "UniformCone",
-    "VonMisesFisher", "Oriented", "Frame",
+    "VonMisesFisher", "Oriented",
     # planar, one-dimensional, discrete and tabulated samplers
     "UniformDisk", "UniformTriangle", "UniformBox", "Exponential", "TruncatedExponential", "Power",
     "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D",
     # generic constructions
-    "Rejection", "RejectionInfo", "Transformed", "Mixture",
-    # writing your own: the base classes, parameter declarations, per-point methods
-    "Sampler", "Pytree", "parameter", "static_field", "point_method",
-    # estimators
+    "Rejection", "Transformed", "Mixture",
+    # writing your own: the base class and its parameter declarations
+    "Sampler", "parameter",
+    # estimators and their result
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
-    "estimate_control_variate", "integrand_values", "estimate_until", "EstimateUntil",
-    "UnreliableEstimateWarning",
+    "estimate_control_variate", "estimate_until",
     # gradients
-    "expectation", "expectation_values", "estimate_grad", "expectation_grad",
+    "expectation", "estimate_grad", "expectation_grad",
     # modules
-    "domains", "edges", "numerics", "quadrature", "scene", "testing", "uniforms",
+    "samplers", "estimators", "domains", "edges", "numerics", "quadrature", "scene", "testing", "uniforms",
 ]

@@ -94,7 +94,7 @@ def test_every_entry_point_follows_the_rule(entry):
     """f's structure with an Estimate (EstimateUntil) per leaf, each statistic shaped like its
     leaf and complex for the complex leaf (traced only: nothing is compiled or run)."""
     tree = jax.eval_shape(lambda k: ENTRY_POINTS[entry](tree_f, k), key(1))
-    kind = js.EstimateUntil if entry == "estimate_until" else js.Estimate
+    kind = js.estimators.EstimateUntil if entry == "estimate_until" else js.Estimate
     assert isinstance(tree, dict) and set(tree) == set(COMPONENTS)
     for name, shape in (("cos2", ()), ("xy", (2,)), ("wave", ()), ("high", ())):
         assert type(tree[name]) is kind
@@ -107,7 +107,7 @@ def test_every_entry_point_follows_the_rule(entry):
 @pytest.mark.parametrize("which", ["integrand_values", "expectation_values"])
 def test_per_sample_values_keep_the_structure(which):
     u = jax.random.uniform(key(2), (64, 2), minval=0.01, maxval=0.99)
-    fn = getattr(js, which)
+    fn = getattr(js.estimators, which)
     tree, flat = jax.jit(lambda u: (fn(tree_f, D, u), fn(flat_f, D, u)))(u)
     flat = np.asarray(flat)
     assert set(tree) == set(COMPONENTS) and tree["xy"].shape == (64, 2) and tree["wave"].dtype == jnp.complex64

@@ -226,7 +226,7 @@ def _all_derivatives(make, layout, floats, arrays, u, points):
         s = build(floats)
         x, p = s.warp_with_pdf(u)
         x_again = s.warp(u)
-        return (js.integrand_values(_integrand, s, u), x, p, s.pdf(x_again), s.log_pdf(x_again))
+        return (js.estimators.integrand_values(_integrand, s, u), x, p, s.pdf(x_again), s.log_pdf(x_again))
 
     def at_points(floats, x):
         s = build(floats)
