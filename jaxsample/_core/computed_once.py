@@ -13,7 +13,8 @@ work inside one loop iteration), and return those arrays from a `lax.cond` branc
 that fusion cannot cross. Integer values travel as floats of the same width (a same-shape
 bitcast), so nothing is rounded: the unpacked values are the computed values exactly. Packing
 four 32-bit values into one complex128 through shape-changing bitcasts would share more work,
-but it defeats LLVM's vectorizer: the estimator of ∫cos³ ran 2x slower that way. The cond's predicate is
+but it defeats LLVM's vectorizer: the estimator of ∫cos³ runs 2x slower that way
+(`benchmarks/bench_estimator.py`). The cond's predicate is
 always true but is not a compile-time constant (it reads a traced `token`); were XLA ever to fold
 it, only the speed would be lost.
 """

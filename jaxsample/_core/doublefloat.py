@@ -67,9 +67,9 @@ def sum_axis0(values: jax.Array, leaf: int = 4, method: str = "auto") -> tuple[j
     "float64": one float64 sum (relative error below
     count · 2^-53), split into hi = fl32(s) and lo = fl32(s - hi), which keeps ~48 bits. This is
     both more accurate and, on XLA's CPU backend, ~3x cheaper per value than the tree below, whose
-    ten levels of small TwoSum kernels cost more than the points they summed (measured: the
-    estimator with 16 replicates of Philox points took 7.9 ns/sample with the tree and 3.4 with
-    float64, against 2.7 without replicates).
+    ten levels of small TwoSum kernels cost more than the points they summed (the estimator with 16
+    replicates of Philox points: more than twice the time per sample with the tree; timed with
+    `benchmarks/bench_estimator.py`).
 
     "tree": plain sums over leaves of `leaf` values, then a pairwise tree of TwoSums. The leaf
     rounding errors are independent and of size ε |leaf sum|, so the result's error is

@@ -7,7 +7,8 @@ operations that mix them badly: a batched `x @ a` stays a separate (count, 3) x 
 by a materialised (count, 3) stack, `jnp.sum(x * a)` reduces over a length-3 minor axis after
 materialising the product, and the generator and the warp are fused twice, once into each
 consumer (seen in the optimized HLO; `docs/xla-cpu-paths.md`). Written with explicit
-components (`x[0] * a[0] + ...`) the same integrand is one loop fusion, 10-30x faster.
+components (`x[0] * a[0] + ...`) the same integrand is one loop fusion, 10-30x faster (the path
+table of `benchmarks/paths.py` times each way of writing it).
 
 `lane_map(fn)` gets that fusion for every way of writing the integrand. It traces `fn` on ONE
 point and evaluates the resulting jaxpr with a small interpreter in which a per-point value of

@@ -40,7 +40,7 @@ def safe_sqrt(x: jax.Array) -> jax.Array:
 
     A custom JVP rather than a double where: the value needs no guard (sqrt(0) = 0), only the
     derivative does, so the forward pass, which every sampler runs, is one max and one sqrt.
-    A NaN argument gives NaN (the double where used to turn it into 0).
+    A NaN argument gives NaN (a double where would turn it into 0).
     """
     return jnp.sqrt(jnp.maximum(x, 0.0))
 

@@ -13,8 +13,9 @@ descent (Adam, written out below, on log n, logit albedo and the light's two ang
 the squared error Σ_v (L̂_v − L_v)², with `jax.grad` through `jaxsample.scene.shade` with its
 default strategy (MIS, power heuristic), in attached and in detached mode, and with BRDF sampling
 alone. Moving the light moves its silhouette: every one of these gradients carries the
-silhouette's boundary term (`scene.direct`); before it, the default MIS gradient was 11-13 % off and
-BRDF sampling's light gradient was exactly 0.
+silhouette's boundary term (`scene.direct`); without it the default MIS gradient of the light is
+biased and BRDF sampling's is exactly 0 (`benchmarks/shade_gradients.py` compares the estimators with
+and without the term).
 
 The gradient of a squared Monte Carlo estimate is biased by its variance (E[(L̂ − L)²] =
 (E L̂ − L)² + Var L̂). So each step draws two independent estimates per view and differentiates

@@ -62,8 +62,8 @@ def cos3(w):
 
 
 def tilted(w):
-    # Written out: jnp.dot of one sample under vmap becomes an unfused XLA dot on CPU, measured
-    # ~10x slower here; the products fuse with the warp.
+    # Written out: jnp.dot of one sample under vmap becomes an unfused XLA dot on CPU, ~10x slower
+    # (the "x @ a" rows of `benchmarks/paths.py`); the products fuse with the warp.
     return jnp.maximum(w[0] * AXIS[0] + w[1] * AXIS[1] + w[2] * AXIS[2], 0.0) ** 3
 
 

@@ -27,7 +27,7 @@ def interleaved_medians(fns: dict, keys, repeats: int = 7) -> dict:
     one warm-up call each) so that a burst of load on a shared machine hits them alike; `keys` is
     an iterator of fresh keys, one per call. Each round calls them in a new (seeded) random
     order, so that no function always follows the same one: a JAX program called right after the
-    NumPy baseline ran up to 1.3x slower here, and a fixed order gave that to one row."""
+    NumPy baseline can run slower, and a fixed order would give that to one row."""
     for fn in fns.values():
         jax.block_until_ready(fn(next(keys)))
     times = {name: [] for name in fns}

@@ -18,7 +18,7 @@ def select_first(candidates, accepted, fallback):
     `accepted` has shape (..., tries); `candidates` and `fallback` are pytrees whose leaves have
     shapes (..., tries, *e) and (..., *e). Written as a chain of selects from the last try to the
     first, it is elementwise (no argmax, no gather), so it fuses with the proposals around it
-    (`jaxsample.lanes`); the result is exactly that of argmax + take_along_axis + where(any).
+    (`jaxsample._core.lanes`); the result is exactly that of argmax + take_along_axis + where(any).
     """
     tries = accepted.shape[-1]
     out = fallback

@@ -4,8 +4,8 @@ Why. A GPU draws 2^32 samples in well under a second, so the global sample index
 every point of a counter-based source depends) must not wrap at 2^32. JAX without x64 has no
 uint64 array type, so an index travels as two uint32 words: through the estimators' `lax.scan`
 carry, across a device mesh and into the sources. Where an index is turned into a Philox counter,
-the high word fills the counter word that was 0, so the points with indices below 2^32 are
-bit for bit the points they were before indices had 64 bits.
+the high word fills the fourth counter word, so an index below 2^32 (high word 0) gives bit for
+bit the counter, and the point, of a 32-bit index.
 
 Narrow indices. `hi` is None when every index of a stream is known, at trace time, to lie below
 2^32 (the estimators know n statically: that is every stream with n <= 2^32). The arithmetic is

@@ -116,7 +116,7 @@ def _index_words(offset, count: int) -> Index:
 
 def _philox_words(seed, block_index, stream: int, word_block: int = 0):
     """Philox of the counter (i mod 2^32, word_block, stream, i div 2^32) for block index i (a
-    uint32 array or an `Index`): below 2^32 the last word is 0, as it was for 32-bit counters."""
+    uint32 array or an `Index`): below 2^32 the last word is 0."""
     block = block_index if isinstance(block_index, Index) else Index(None, _u32(block_index))
     low = block.lo
     high = jnp.zeros_like(low) if block.hi is None else block.hi

@@ -61,8 +61,7 @@ class Source(Pytree):
     faster path that gives the same points.
 
     Offsets: a Python or NumPy integer (any index below 2^64), a uint32 array (a traced offset of
-    a window that stays below 2^32: what the estimators pass for n <= 2^32, as before indices had
-    64 bits) or an `index.Index` (two uint32 words: the estimators' offsets for n > 2^32). A
+    a window that stays below 2^32: what the estimators pass for n <= 2^32) or an `index.Index` (two uint32 words: the estimators' offsets for n > 2^32). A
     subclass handles all three by reading them with `index.as_index(offset, count)`.
     """
 
@@ -267,7 +266,7 @@ class Sobol(Source):
         # Lanes of shape (per, R): point j of replicate r is global index offset + j R + r, the
         # C order of the lanes, as `Source.lanes` asks. Kept 2-D (not flattened to (count,)),
         # so that XLA's loops read the table row and the seeds without index arithmetic and
-        # vectorize (flattened, the fusion ran scalar: ~3x slower).
+        # vectorize (flattened, the fusion runs scalar: ~3x slower in the uniforms= rows of benchmarks/paths.py).
         return (tuple(bits_to_unit(_scramble_reversed(jnp.asarray(table[:, j])[:, None] ^ high[j],
                                                       seeds[None, :, j]), dtype)
                       for j in range(dims)),)
