@@ -504,11 +504,11 @@ def _draw_unchecked(sampler: Sampler, key, shape: tuple[int, ...], dtype, method
     `shape + event`: `sample` and `sample_with_pdf` as one compiled program, whatever the sampler.
 
     The uniforms come as the generator makes them (`Source.lanes`: g = 4 // d points per Philox
-    block, one array per coordinate), the warp runs on coordinate lanes (`jaxsample.lanes`), and
-    every output coordinate of every group is computed in one loop and stored once
-    (`jaxsample.computed_once`) before the groups are interleaved into the (count, *event) result.
-    Written as `warp(u)` on a (count, d) block, XLA recomputed the generator and the warp for each
-    output coordinate (the HLO shows Philox once per consumer) and ran below NumPy's speed.
+    block, one array per coordinate), the warp runs on coordinate lanes (`jaxsample._core.lanes`),
+    and every output coordinate of every group is computed in one loop and stored once
+    (`jaxsample._core.computed_once`) before the groups are interleaved into the (count, *event)
+    result: written as `warp(u)` on a (count, d) block, XLA recomputes the generator and the warp
+    for each output coordinate (the optimized HLO shows Philox once per consumer).
     """
     from .._core.computed_once import computed_once
     from .._core.lanes import lane_map
