@@ -210,10 +210,18 @@ def _finite_high(interval: Interval) -> float:
     return float(interval.quadrature_high)
 
 
+def _finite_low(interval: Interval) -> float:
+    if np.isfinite(interval.low):
+        return float(interval.low)
+    if interval.quadrature_low is None:
+        raise ValueError("Interval: an interval unbounded below needs 'quadrature_low'")
+    return float(interval.quadrature_low)
+
+
 def panel_edges(interval: Interval) -> np.ndarray:
     """Quadrature panel edges on [low, high]: split at every break; graded toward each piece's
     ends if the interval asks for it."""
-    low, high = float(interval.low), _finite_high(interval)
+    low, high = _finite_low(interval), _finite_high(interval)
     breaks = np.asarray(interval.breaks, dtype=np.float64).ravel()
     pieces = np.unique(np.concatenate([[low, high], breaks[(breaks > low) & (breaks < high)]]))
     if not interval.graded:
@@ -250,7 +258,7 @@ def _(domain: Interval, pilot, n_cells):
 @contains.register
 def _(domain: Interval, x, tolerance: float = 1e-6):
     x = np.asarray(x, np.float64)
-    slack = tolerance * max(1.0, abs(domain.low), abs(_finite_high(domain)))
+    slack = tolerance * max(1.0, abs(_finite_low(domain)), abs(_finite_high(domain)))
     return np.isfinite(x) & (x >= domain.low - slack) & (x <= domain.high + slack)
 
 

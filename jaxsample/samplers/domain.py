@@ -38,7 +38,7 @@ class Directions:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Interval:
-    """The interval [low, high] (high may be +inf) with the length measure; event_shape ().
+    """The interval [low, high] (low may be -inf, high +inf) with the length measure; event_shape ().
 
     `breaks` are points where the density may jump or peak (bin edges, a truncation point): the
     quadrature splits there. With `graded=True` each piece gets panels graded geometrically toward
@@ -46,7 +46,8 @@ class Interval:
     panels themselves (a piecewise-constant density with `order=1` is then integrated exactly by
     the midpoint rule, even with 10^6 bins). For high = inf the quadrature stops at
     `quadrature_high`, which the sampler chooses so that the mass beyond it is negligible (below
-    1e-30); chi-square cells still extend to infinity.
+    1e-30); chi-square cells still extend to infinity. Likewise, for low = -inf it starts at
+    `quadrature_low`.
     """
 
     low: float = 0.0
@@ -55,6 +56,7 @@ class Interval:
     graded: bool = True
     order: int = GAUSS_ORDER
     quadrature_high: float | None = None
+    quadrature_low: float | None = None
     event_shape = ()
     measure = "length"
 
