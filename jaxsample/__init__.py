@@ -23,6 +23,7 @@ from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, 
                        PiecewiseConstant1D, PiecewiseConstant2D, Power, Pytree, Rejection, Sampler, Transformed,
                        TruncatedExponential, UniformBox, UniformCone, UniformDisk, UniformHemisphere, UniformSphere,
                        UniformTriangle, VonMisesFisher, parameter, point_method, static_field)
+from .samplers import Bilinear, HenyeyGreenstein, Linear, Normal, Normal2D, Tent
 
 __version__ = "0.1.0"
 
@@ -48,6 +49,8 @@ __all__ = [
     # planar, one-dimensional, discrete and tabulated samplers
     "UniformDisk", "UniformTriangle", "UniformBox", "Exponential", "TruncatedExponential", "Power",
     "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D",
+    # phase function, Gaussians and low-order polynomial densities
+    "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear",
     # generic constructions
     "Rejection", "Transformed", "Mixture",
     # writing your own: the base class and its parameter declarations

@@ -15,10 +15,13 @@ from .discrete import Discrete
 from .disk import UniformDisk
 from .exponential import Exponential, TruncatedExponential
 from .frame import Frame
+from .henyey_greenstein import HenyeyGreenstein
 from .mixture import Mixture
+from .normal import Normal, Normal2D
 from .oriented import Oriented
 from .phong import PhongLobe
 from .piecewise import PiecewiseConstant1D, PiecewiseConstant2D
+from .polynomial import Bilinear, Linear, Tent
 from .power import Power
 from .rejection import Rejection, RejectionInfo
 from .sphere import UniformHemisphere, UniformSphere
@@ -31,4 +34,5 @@ __all__ = [
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",
+    "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear",
 ]

@@ -261,6 +261,32 @@ def transformed_spherical(low, high):
     return js.Transformed(js.UniformBox(low, high), _sphere_forward, _sphere_inverse, domain=Directions())
 
 
+# Henyey–Greenstein, Gaussians, tent, linear, bilinear (jaxsample issue 24, part 3).
+
+def henyey_greenstein(g):
+    return js.HenyeyGreenstein(g)
+
+
+def normal(loc, scale):
+    return js.Normal(loc, scale)
+
+
+def normal_2d(loc, scale):
+    return js.Normal2D(loc, scale)
+
+
+def tent(radius):
+    return js.Tent(radius)
+
+
+def linear(a, b):
+    return js.Linear(a, b)
+
+
+def bilinear(w):
+    return js.Bilinear(w)
+
+
 # ---------------------------------------------------------------------------------------------
 # Fixed points and tables
 # ---------------------------------------------------------------------------------------------
@@ -416,6 +442,34 @@ ENTRIES = [
           DIRECTION_POINTS, positive_at_edges=False, gradients64=False),
     # (Its gradients are those of the other two mixtures' code with the disks' warps.)
     Entry("Mixture-disks", mixture_of_disks, (_C(([1.0, 0.0],), chi2=False, gradients=False),), DISK_POINTS),
+    # ---- Henyey–Greenstein, Gaussians, tent, linear, bilinear (jaxsample issue 24, part 3) ----
+    # g at its float32 hard cases; chi-square at a sharp forward lobe and the sharpest backward
+    # one (the warp's factors are formed differently for g < 0).
+    Entry("HenyeyGreenstein", henyey_greenstein,
+          (_C((0.0,), chi2=False), _C((1e-4,), chi2=False), _C((-0.5,), chi2=False), _C((0.99,)), _C((-0.99,), chi2=False),
+           _C((1.0 - 1e-4,), chi2=False), _C((-(1.0 - 1e-4),))),
+          DIRECTION_POINTS, 400_000, 128, 65_536, _DIRECTIONAL_INVERSE),
+    Entry("Normal", normal, (_C((0.5, 2.0)), _C((0.0, 1e-6), chi2=False), _C((3.0, 1e6), chi2=False)),
+          np.array([0.0, 1.0, -3.0, 1e-30, 40.0, -1e3]), 1_000_000, inverse=_LINE_INVERSE),
+    # Scales 1e-6 and 1e6 on the two axes: the check's det(JᵀJ) cancels in float32 for so
+    # unequal columns, so that case's round trip is in test_phase_and_simple.py instead.
+    Entry("Normal2D", normal_2d, (_C(((1.0, -2.0), (0.5, 3.0))),
+                                  _C(((0.0, 0.0), (1e-6, 1e6)), chi2=False, inverse=False)),
+          DISK_POINTS, inverse=_PLANAR_INVERSE),
+    # pdf(x) near the zero ends has the relative error of x's rounding over the density,
+    # ulp/p: 2e-5 at p = 0.0025 (Tent) and 5e-5 at p = 0.0036 (Bilinear's zero corners).
+    Entry("Tent", tent, (_C((1.0,)), _C((1e-6,), chi2=False), _C((1e6,), chi2=False)),
+          np.array([0.0, 0.5, -1.0, 1.0, 2.0, -1e-30]), 1_000_000, inverse=_LINE_INVERSE,
+          pdf_rtol=1e-4, positive_at_edges=False),  # u = 0 gives x = -r, where the density is 0
+    # a = b (the textbook root's 0/0), a weight of 0 at either end, and a ratio of 1e12.
+    Entry("Linear", linear, (_C((1.0, 3.0)), _C((0.0, 1.0)), _C((1.0, 0.0), chi2=False), _C((2.0, 2.0), chi2=False),
+                             _C((1e6, 1e-6), chi2=False)),
+          np.array([0.0, 1.0, 0.5, 1e-30, 2.0, -0.5]), 1_000_000, inverse=_LINE_INVERSE,
+          positive_at_edges=False),  # a = 0: u = 0 gives x = 0, where the density is 0
+    Entry("Bilinear", bilinear, (_C(((1.0, 2.0, 3.0, 4.0),)), _C(((0.0, 0.0, 1.0, 3.0),)),
+                                 _C(((0.0, 1.0, 1.0, 0.0),), chi2=False), _C(((1e6, 1.0, 0.0, 1e-6),), chi2=False)),
+          np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
+          inverse=_PLANAR_INVERSE, pdf_rtol=1e-4, positive_at_edges=False),  # a zero corner weight: p = 0 there
 ]
 
 BY_NAME = {entry.name: entry for entry in ENTRIES}
