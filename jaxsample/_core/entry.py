@@ -15,7 +15,8 @@ Called eagerly, the estimates it returns are checked (`estimators.diagnostics.wa
 an unreliable one emits an `UnreliableEstimateWarning`. Inside an enclosing `jit`, `vmap` or `grad`
 nothing changes (a nested `jit` is inlined, and no value can be inspected). A call
 whose static arguments cannot be hashed (a traced `n`, an unhashable callable) or whose traced
-arguments are not arrays or numbers runs the function as written, so that its own checks give
+arguments are not arrays or numbers runs the function as written (a string given where a number may
+also go, such as `baseline="leave_one_out"`, is static for that call, not a reason to run uncompiled), so that its own checks give
 their usual messages.
 """
 
@@ -58,7 +59,14 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = ()) -> Callable:
 
     def wrap(fn: Callable) -> Callable:
         signature = inspect.signature(fn)
-        jitted = jax.jit(fn, static_argnames=static)
+        jitted = {frozenset(): jax.jit(fn, static_argnames=static)}
+
+        def compiled(text_arguments: frozenset):
+            # A string where a number may also go (`baseline="leave_one_out"` or a constant) picks
+            # the program, so it is static for that call; a number there stays traced.
+            if text_arguments not in jitted:
+                jitted[text_arguments] = jax.jit(fn, static_argnames=tuple(static) + tuple(sorted(text_arguments)))
+            return jitted[text_arguments]
 
         @functools.wraps(fn)
         def entry(*args, **kwargs):
@@ -71,12 +79,14 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = ()) -> Callable:
                     arguments[name] = tuple(arguments[name])
             if "key" in arguments:
                 arguments["key"] = as_key(arguments["key"], fn.__name__)
-            dynamic = [value for name, value in arguments.items() if name not in static]
+            text = frozenset(name for name, value in arguments.items()
+                             if name not in static and isinstance(value, str))
+            dynamic = [value for name, value in arguments.items() if name not in static and name not in text]
             from ..estimators.diagnostics import warn_if_unreliable
 
             if (all(_hashable(arguments[name]) for name in static if name in arguments)
                     and array_leaves(dynamic)):
-                result = jitted(*bound.args, **bound.kwargs)
+                result = compiled(text)(*bound.args, **bound.kwargs)
             else:
                 result = fn(*bound.args, **bound.kwargs)
             warn_if_unreliable(result, fn.__name__)

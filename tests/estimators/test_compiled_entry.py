@@ -111,3 +111,24 @@ def test_a_repeated_eager_estimate_until_compiles_nothing():
     assert again == 0, again
     jitted = jax.jit(lambda k: run(2.0, k))(jax.random.key(6))
     assert float(est.mean) == float(jitted.mean) and int(est.n_used) == int(jitted.n_used)
+
+
+def phong_cos3(exponent):
+    return cos3, js.PhongLobe(exponent)
+
+
+@pytest.mark.parametrize("baseline", ["leave_one_out", 0.1])
+def test_a_baseline_given_as_text_or_number_compiles_once(baseline):
+    """`baseline` is a string ("leave_one_out") or a traced number: the string picks the program
+    (static for that call) and does not send the call op by op, which compiled ~250 small
+    programs and took a second per repeat call."""
+    def run(exponent, key):
+        return js.expectation_grad(phong_cos3, exponent, key, N, gradient="score", baseline=baseline)
+
+    _, first = _counting_compilations(lambda: run(5.0, jax.random.key(7)))
+    est, again = _counting_compilations(lambda: run(6.0, jax.random.key(8)))
+    assert first <= 4, first
+    assert again == 0, again
+    # (Under an enclosing jit a numeric baseline is a constant XLA may fold: equal to rounding.)
+    jitted = jax.jit(lambda k: run(6.0, k))(jax.random.key(8))
+    np.testing.assert_allclose([est.mean, est.stderr], [jitted.mean, jitted.stderr], rtol=1e-6)
