@@ -22,6 +22,8 @@ def _merged_domain(domains):
     changes = {"breaks": tuple(breaks)}
     if getattr(first, "quadrature_high", None) is not None:
         changes["quadrature_high"] = max(d.quadrature_high for d in domains)
+    if getattr(first, "quadrature_low", None) is not None:
+        changes["quadrature_low"] = min(d.quadrature_low for d in domains)
     return dataclasses.replace(first, **changes)
 
 

@@ -156,3 +156,13 @@ def test_mixture_jit_vmap_and_invalid():
         Mixture((Exponential(1.0), Exponential(2.0)), [0.0, 0.0])
     with pytest.raises(ValueError, match="'components'.*event shape"):
         Mixture((Exponential(1.0), UniformDisk()), [1.0, 1.0])
+
+
+def test_a_mixture_on_the_real_line_integrates_over_every_component():
+    """Components on an unbounded line: the merged domain's quadrature spans the lowest component
+    too (not only the first one's range), so the mixture's density integrates to 1."""
+    from jaxsample.samplers.normal import Normal
+    from jaxsample.testing import normalization
+
+    far_apart = Mixture((Normal(20.0, 1.0), Normal(-20.0, 1.0)), [0.5, 0.5])
+    assert abs(float(normalization(far_apart)) - 1.0) < 1e-9
