@@ -813,6 +813,31 @@ MUTATIONS = [
       "return _all_of(super()._parameters_valid(), positive)", "return super()._parameters_valid()",
       ("tests/samplers/test_phase_and_simple.py::test_invalid_parameters_raise_and_traced_ones_give_nan",),
       "Linear(0, 0) under jit: finite samples of a density that is 0 everywhere, not NaN"),
+    # ---- issue 30: options and error bars that had no test of their own ----
+    M("until-atol-ignored", "jaxsample/estimators/until.py",
+      'tolerance = jnp.maximum(atol_, rtol_ * layout.magnitudes(statistics["mean"]))',
+      'tolerance = rtol_ * layout.magnitudes(statistics["mean"])',
+      ("tests/estimators/test_until.py::test_an_absolute_tolerance_alone_stops_the_stream",),
+      "estimate_until ignores atol: an atol-only request never converges and spends max_n"),
+    M("until-min-n-ignored", "jaxsample/estimators/until.py",
+      "max_steps, min_steps = max_n // step, min_n // step",
+      "max_steps, min_steps = max_n // step, 8",
+      ("tests/estimators/test_until.py::test_min_n_holds_the_stream_past_a_met_tolerance",),
+      "estimate_until ignores min_n (always the default 8 chunks)"),
+    M("replicate-stderr-not-over-r", "jaxsample/estimators/engine.py",
+      "stderr = safe_sqrt(jnp.sum(spread * spread, axis=0) / (replicates - 1) / replicates)",
+      "stderr = safe_sqrt(jnp.sum(spread * spread, axis=0) / (replicates - 1))",
+      ("tests/estimators/test_calibration.py::test_stderr_matches_the_spread_of_estimates_over_keys[until-sobol]",
+       "tests/estimators/test_calibration.py::test_stderr_matches_the_spread_of_estimates_over_keys[estimate-grad-sobol]"),
+      "the replicates' stderr is their spread, not divided by sqrt(R) (4x too large for R = 16), in "
+      "estimate_until and in gradients"),
+    M("iid-stderr-for-replicates", "jaxsample/estimators/engine.py",
+      "if replicates == 1:", "if True:",
+      ("tests/estimators/test_calibration.py::test_stderr_matches_the_spread_of_estimates_over_keys[estimate-grad-sobol]",
+       "tests/estimators/test_calibration.py::test_stderr_matches_the_spread_of_estimates_over_keys[estimate-grad-stratified]",
+       "tests/estimators/test_calibration.py::test_stderr_matches_the_spread_of_estimates_over_keys[expectation-grad-score-sobol]"),
+      "the gradient's stderr taken as sqrt(s^2/n) whatever the source (Sobol' and stratified points "
+      "are not independent: their error is far smaller)"),
 ]
 
 

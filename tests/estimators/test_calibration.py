@@ -50,6 +50,10 @@ def c4(m):
     return math.sqrt(2.0 / (m - 1)) * math.exp(math.lgamma(m / 2) - math.lgamma((m - 1) / 2))
 
 
+def phong_cos3(exponent):
+    return cos3, js.PhongLobe(exponent)
+
+
 LIGHT = scene.SphereLight(jnp.array([0.5, 0.2, 2.0]), 0.8, 3.0)
 
 # name: (estimator of one key, exact value or None, replicates R or terms m, "replicates"|"terms")
@@ -72,6 +76,21 @@ PATHS = {
     "shade-light-sobol": (lambda k: scene.shade(jnp.zeros(3), jnp.array([0.0, 0.0, 1.0]), jnp.array([0.3, 0.0, 1.0]),
                                                 scene.Lambertian(0.8), LIGHT, k, 1024, strategy="light",
                                                 uniforms="sobol"), None, 16, "replicates"),
+    # estimate_until run to max_n (a tolerance no key meets): its stderr is the finishing step's
+    # for each source, with the sequential loop around it.
+    "until-random": (lambda k: js.estimate_until(cos3, js.UniformHemisphere(), k, rtol=1e-9, max_n=1024,
+                                                 chunk_size=256), HALF_PI, 1024, "terms"),
+    "until-sobol": (lambda k: js.estimate_until(cos3, js.UniformHemisphere(), k, atol=1e-12, max_n=1 << 12,
+                                                chunk_size=1 << 10, uniforms="sobol"), HALF_PI, 16, "replicates"),
+    # Gradients' stderrs from their per-replicate terms (Sobol', stratified): d/dn ∫ cos³ dω under
+    # Phong(n) samples (exactly 0: a fixed integral), and d/dn E_Phong(n)[cos³] = 3/(n + 4)² by the
+    # score function.
+    "estimate-grad-sobol": (lambda k: js.estimate_grad(phong_cos3, 3.0, k, 1024, uniforms="sobol"), 0.0, 16,
+                            "replicates"),
+    "estimate-grad-stratified": (lambda k: js.estimate_grad(phong_cos3, 3.0, k, 1024, uniforms="stratified"), 0.0,
+                                 16, "replicates"),
+    "expectation-grad-score-sobol": (lambda k: js.expectation_grad(phong_cos3, 3.0, k, 1024, gradient="score",
+                                                                   uniforms="sobol"), 3.0 / 49.0, 16, "replicates"),
     "expectation-leave-one-out": (lambda k: js.expectation(cos3, js.PhongLobe(3.0), k, 256, gradient="score",
                                                            baseline="leave_one_out"), 4.0 / 7.0, 256, "terms"),
 }

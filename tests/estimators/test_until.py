@@ -156,3 +156,21 @@ def test_sharded_stops_where_one_device_does_in_subprocess():
     out = subprocess.run([sys.executable, "-c", SHARDED_SCRIPT], capture_output=True, text=True,
                          env=env, timeout=300)
     assert "SHARDED-OK" in out.stdout, out.stderr[-3000:]
+
+
+def test_an_absolute_tolerance_alone_stops_the_stream():
+    """atol without rtol: ∫cos³ under uniform hemisphere samples has per-sample variance 9π²/28
+    (reference.md), so stderr <= 2e-2 needs n >= 7930, fewer than min_n (8 chunks of 4096): the
+    stream stops at exactly min_n. An ignored atol (a tolerance of 0) never stops before max_n."""
+    r = js.estimate_until(COS3, js.UniformHemisphere(), jax.random.key(31), atol=2e-2, max_n=1 << 20,
+                          chunk_size=1 << 12)
+    assert bool(r.converged) and int(r.n_used) == 8 << 12, int(r.n_used)
+    assert float(r.stderr) <= 2e-2
+
+
+def test_min_n_holds_the_stream_past_a_met_tolerance():
+    """rtol = 0.5 is met by the first chunk; min_n = 20 chunks must still be drawn (the default
+    is 8), and no more."""
+    r = js.estimate_until(COS3, js.UniformHemisphere(), jax.random.key(32), rtol=0.5, max_n=1 << 20,
+                          chunk_size=1 << 10, min_n=20 << 10)
+    assert bool(r.converged) and int(r.n_used) == 20 << 10, int(r.n_used)
