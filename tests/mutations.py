@@ -838,6 +838,10 @@ MUTATIONS = [
        "tests/estimators/test_calibration.py::test_stderr_matches_the_spread_of_estimates_over_keys[expectation-grad-score-sobol]"),
       "the gradient's stderr taken as sqrt(s^2/n) whatever the source (Sobol' and stratified points "
       "are not independent: their error is far smaller)"),
+    M("mis-variance-square", "jaxsample/estimators/mis.py",
+      "variance=float(total) * stderr * stderr,", "variance=float(total) * stderr,",
+      ("tests/estimators/test_calibration.py::test_mis_variance_is_per_evaluation_at_the_calibrated_stderr",),
+      "estimate_mis's per-evaluation variance missing a square of the stderr"),
 ]
 
 

@@ -134,3 +134,11 @@ def test_calibration_rejects_an_error_bar_off_by_half():
     for scale in (1.5, 1 / 1.5):
         ratio, bound = calibration(means, scale * stderrs, 10 ** 6, "terms")
         assert abs(ratio - 1) > bound, scale
+
+
+def test_mis_variance_is_per_evaluation_at_the_calibrated_stderr():
+    """`estimate_mis`'s variance is stated per evaluation, stderr² (n₁ + n₂), so that strategies
+    compare at equal cost; with the stderr calibrated above, that pins the variance too."""
+    est = estimate_mis(cos3, [js.CosineHemisphere(), js.UniformHemisphere()], jax.random.key(77), [256, 64],
+                       heuristic="power")
+    np.testing.assert_allclose(float(est.variance), float(est.stderr) ** 2 * 320, rtol=1e-5)
