@@ -17,6 +17,9 @@ from .exponential import Exponential, TruncatedExponential
 from .frame import Frame
 from .henyey_greenstein import HenyeyGreenstein
 from .mixture import Mixture
+from .microfacet import MicrofacetDistribution, MicrofacetReflection, VisibleNormals
+from .microfacet_beckmann import Beckmann
+from .microfacet_ggx import GGX
 from .normal import Normal, Normal2D
 from .oriented import Oriented
 from .phong import PhongLobe
@@ -35,4 +38,5 @@ __all__ = [
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear",
+    "GGX", "Beckmann", "MicrofacetDistribution", "VisibleNormals", "MicrofacetReflection",
 ]

@@ -287,6 +287,32 @@ def bilinear(w):
     return js.Bilinear(w)
 
 
+# Microfacet distributions (GGX, Beckmann) and their lobes (jaxsample issue 24, part 1).
+
+def ggx(alpha_x, alpha_y):
+    return js.GGX(alpha_x, alpha_y)
+
+
+def beckmann(alpha_x, alpha_y):
+    return js.Beckmann(alpha_x, alpha_y)
+
+
+def ggx_visible(alpha_x, alpha_y, wo):
+    return js.VisibleNormals(js.GGX(alpha_x, alpha_y), wo)
+
+
+def beckmann_visible(alpha_x, alpha_y, wo):
+    return js.VisibleNormals(js.Beckmann(alpha_x, alpha_y), wo)
+
+
+def ggx_reflection(alpha_x, alpha_y, wo):
+    return js.MicrofacetReflection(js.GGX(alpha_x, alpha_y), wo)
+
+
+def beckmann_reflection(alpha_x, alpha_y, wo):
+    return js.MicrofacetReflection(js.Beckmann(alpha_x, alpha_y), wo)
+
+
 # ---------------------------------------------------------------------------------------------
 # Fixed points and tables
 # ---------------------------------------------------------------------------------------------
@@ -324,6 +350,22 @@ _C = Case
 _DIRECTIONAL_INVERSE = Inverse(tol32=2e-6, jacobian64=1e-6, margin=0.0, edges=True, n=4096)
 _PLANAR_INVERSE = Inverse(tol32=2e-4, tol64=1e-9, jacobian32=1e-3, n=4096)
 _LINE_INVERSE = Inverse(tol32=1e-4, jacobian32=1e-3, margin=1e-4, jacobian_margin=1e-4)
+
+# Microfacet lobes: wo at cos θ_o = 1e-7 (grazing), oblique, skew to the anisotropy's axes, along the
+# normal, and below the horizon (the surface seen from its other side). The grazing and oblique wo are
+# turned 0.3 rad in azimuth: GGX's cap map is singular at u = (1, (φ_wo + π) / 2π) (c = -wh, where the normals
+# perpendicular to wo meet; the condition number is 1 / (1 - u₀)), and for φ_wo = 0 that is an edge row
+# (1 - 2^-24, 0.5), whose float32 round trip no float32 arithmetic can hold.
+MICROFACET_GRAZING = (float(np.sqrt(1.0 - 1e-14) * np.cos(0.3)), float(np.sqrt(1.0 - 1e-14) * np.sin(0.3)), 1e-7)
+MICROFACET_OBLIQUE = (float(0.6 * np.cos(0.3)), float(0.6 * np.sin(0.3)), 0.8)
+MICROFACET_SKEW = (0.5, 0.5, float(np.sqrt(0.5)))
+MICROFACET_BELOW = (0.0, 0.3, -float(np.sqrt(0.91)))
+_MICROFACET_INVERSE = Inverse(tol32=5e-5, tol64=1e-9, jacobian64=1e-6, margin=0.0, edges=True, n=4096)
+_MICROFACET_REFLECTION_INVERSE = dataclasses.replace(_MICROFACET_INVERSE, tol32=5e-3, tol64=1e-6)
+_MICROFACET_LOBE_CASES = (
+    _C((1e-4, 1e-4, MICROFACET_GRAZING)), _C((1.0, 1.0, MICROFACET_GRAZING)), _C((1.0, 1e-3, MICROFACET_SKEW)),
+    _C((0.3, 0.3, MICROFACET_OBLIQUE), chi2=False), _C((1e-2, 1e-2, (0.0, 0.0, 1.0)), chi2=False),
+    _C((0.3, 0.3, MICROFACET_BELOW), chi2=False))
 
 ENTRIES = [
     # ---- directions (solid angle) ----
@@ -470,6 +512,34 @@ ENTRIES = [
                                  _C(((0.0, 1.0, 1.0, 0.0),), chi2=False), _C(((1e6, 1.0, 0.0, 1e-6),), chi2=False)),
           np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
           inverse=_PLANAR_INVERSE, pdf_rtol=1e-4, positive_at_edges=False),  # a zero corner weight: p = 0 there
+    # ---- microfacet distributions and their lobes (jaxsample issue 24, part 1) ----
+    # Roughness 1e-4..1 and anisotropy 1e3 (alpha_x = 1, alpha_y = 1e-3); wo at cos θ_o = 1e-7, 45°-ish,
+    # along the normal and below the horizon. Chi-square at the smoothest, the roughest and the
+    # anisotropic lobe; the rest are checked for normalization, inverse, support and gradients.
+    Entry("GGX", ggx, (_C((1e-4, 1e-4)), _C((1e-2, 1e-2), chi2=False), _C((0.3, 0.3), chi2=False),
+                       _C((1.0, 1.0)), _C((1.0, 1e-3))),
+          DIRECTION_POINTS, 400_000, 128, 65_536, _MICROFACET_INVERSE, positive_at_edges=False),
+    Entry("Beckmann", beckmann, (_C((1e-4, 1e-4)), _C((1e-2, 1e-2), chi2=False), _C((0.3, 0.3), chi2=False),
+                                 _C((1.0, 1.0)), _C((1.0, 1e-3))),
+          DIRECTION_POINTS, 400_000, 128, 65_536, _MICROFACET_INVERSE, positive_at_edges=False),
+    Entry("VisibleNormals-GGX", ggx_visible, _MICROFACET_LOBE_CASES, DIRECTION_POINTS, 400_000, 128, 65_536,
+          _MICROFACET_INVERSE, positive_at_edges=False),
+    Entry("VisibleNormals-Beckmann", beckmann_visible, _MICROFACET_LOBE_CASES, DIRECTION_POINTS, 400_000, 128,
+          65_536, _MICROFACET_INVERSE, positive_at_edges=False),
+    # wi is recomputed into m = normalize(wo + wi): a float32 wi fixes m to ~6e-8 / |wo + wi| rad, which a
+    # lobe of alpha = 1e-4 (or alpha_y = 1e-3) turns into ~1e-3 of u (the round trip's tolerance; 1e-6 in
+    # float64 for the same reason at grazing). At alpha = 1e-4 and a grazing wo the lobe of wi is
+    # 2 (wo·m) alpha ~ 2e-8 rad across, below float32's spacing of directions: that case is float64 only.
+    Entry("MicrofacetReflection-GGX", ggx_reflection,
+          (_C((0.3, 0.3, MICROFACET_OBLIQUE)), _C((1.0, 1.0, MICROFACET_GRAZING)), _C((1.0, 1e-3, MICROFACET_SKEW)),
+           _C((1e-4, 1e-4, MICROFACET_OBLIQUE), chi2=False), _C((1e-4, 1e-4, MICROFACET_GRAZING), x64=True, chi2=False),
+           _C((1e-2, 1e-2, MICROFACET_BELOW), chi2=False)),
+          DIRECTION_POINTS, 400_000, 128, 65_536, _MICROFACET_REFLECTION_INVERSE,
+          positive_at_edges=False),
+    Entry("MicrofacetReflection-Beckmann", beckmann_reflection,
+          (_C((0.3, 0.3, MICROFACET_OBLIQUE)), _C((1.0, 1e-3, MICROFACET_SKEW), chi2=False),
+           _C((1.0, 1.0, MICROFACET_GRAZING), chi2=False)),
+          DIRECTION_POINTS, 400_000, 128, 65_536, _MICROFACET_REFLECTION_INVERSE, positive_at_edges=False),
 ]
 
 BY_NAME = {entry.name: entry for entry in ENTRIES}
