@@ -842,6 +842,22 @@ MUTATIONS = [
       "variance=float(total) * stderr * stderr,", "variance=float(total) * stderr,",
       ("tests/estimators/test_calibration.py::test_mis_variance_is_per_evaluation_at_the_calibrated_stderr",),
       "estimate_mis's per-evaluation variance missing a square of the stderr"),
+    M("lanes-dot-batch-zero", "jaxsample/_core/lanes.py",
+      "total = lax.add(total, term(lhs_m[b + i + (c,)], rhs_m[b + j + (c,)]))",
+      "total = lax.add(total, term(lhs_m[b + i + (c,)], rhs_m[(0,) * nb + j + (c,)]))",
+      ("tests/_core/test_lanes.py::test_lane_map_equals_vmap",),
+      "a batched dot_general on lanes reads the right-hand side's batch 0 for every term after the first "
+      "(einsum('bij,bj->bi') wrong)"),
+    M("lanes-transpose-inverse", "jaxsample/_core/lanes.py",
+      'return _rearranged(eqn, inputs[0].cells.transpose(eqn.params["permutation"]))',
+      'return _rearranged(eqn, inputs[0].cells.transpose(np.argsort(eqn.params["permutation"])))',
+      ("tests/_core/test_lanes.py::test_lane_map_equals_vmap",),
+      "a transpose on lanes applied with the inverse permutation (the same for 2 axes, wrong for 3)"),
+    M("lanes-concatenate-axis-0", "jaxsample/_core/lanes.py",
+      'return _rearranged(eqn, np.concatenate(cells, axis=eqn.params["dimension"]))',
+      'return _rearranged(eqn, np.concatenate(cells, axis=0))',
+      ("tests/_core/test_lanes.py::test_lane_map_equals_vmap",),
+      "a concatenation on lanes always joined along axis 0 (an hstack of blocks wrong)"),
 ]
 
 

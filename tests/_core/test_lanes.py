@@ -43,6 +43,14 @@ PROGRAMS = {
     "bool_dot": lambda x: jax.lax.dot_general(x > 0, x < 0.5, (((0,), (0,)), ((), ()))).astype(jnp.float32),
     "wide": lambda x: jnp.sum(jnp.sin(jnp.outer(jnp.linspace(0.0, 1.0, 40), x)), axis=0),  # > MAX_LANES
     "stop_gradient": lambda x: jax.lax.stop_gradient(x) * x,
+    # A batched contraction (every batch member its own matrix), a transpose of three axes (its
+    # inverse permutation is another, wrong, one) and a join along axis 1: the programs of a fresh
+    # audit's surviving breaks of these rules (issue 30).
+    "einsum_batched": lambda x: jnp.einsum("bij,bj->bi", jnp.stack([jnp.outer(x, A), 2.0 * jnp.outer(A, x)]),
+                                           jnp.stack([x, x[::-1] + 1.0])).reshape(-1),
+    "transpose_3_axes": lambda x: jnp.transpose(x[:2, None, None] * A[None, :, None] * x[None, None, :],
+                                                (1, 2, 0)).reshape(-1),
+    "hstack": lambda x: jnp.hstack([jnp.outer(x[:2], A), 2.0 * x[:2, None]]).reshape(-1),
 }
 
 
