@@ -1,6 +1,6 @@
 """Layer 7, the scene: only what one shading point needs (docs/design.md).
 
-BRDFs (`Lambertian`, `Phong`) work in the local shading frame (normal +z) and have `eval`,
+BRDFs (`Lambertian`, `Phong`, `RoughConductor`) work in the local shading frame (normal +z) and have `eval`,
 `sample` and `pdf`; lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `EnvironmentMap`) work in
 world space and have `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)`, `radiance_from(point, ω)` and
 `sampler(point)` (a `jaxsample.Sampler` of directions, for the statistical checks). `shade`
@@ -12,13 +12,16 @@ from .environment import EnvironmentDirections, EnvironmentMap
 from .lambertian import Lambertian
 from .phong import Phong, reflect
 from .reference import reference_radiance
+from .rough_conductor import (FullNormalsReflection, RoughConductor, fresnel_conductor, fresnel_schlick,
+                              normal_incidence_reflectance)
 from .direct import STRATEGIES, mis_weight, shade, shade_grad
 from .sky import ConstantSky
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight, TriangleLightDirections
 
 __all__ = [
-    "Lambertian", "Phong", "reflect",
+    "Lambertian", "Phong", "reflect", "RoughConductor", "FullNormalsReflection",
+    "fresnel_conductor", "fresnel_schlick", "normal_incidence_reflectance",
     "ConstantSky", "SphereLight", "TriangleLight", "TriangleLightDirections", "EnvironmentMap",
     "EnvironmentDirections",
     "shade", "shade_grad", "mis_weight", "STRATEGIES", "reference_radiance",

@@ -310,8 +310,9 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     Args:
       point, normal, wo: 3-vectors in world space; `normal` and `wo` (pointing away from the
         surface, toward the viewer) are normalized here. L_o is 0 when wo is below the surface.
-      brdf: `Lambertian`, `Phong`, or any pytree with `eval(wo, wi)`, `sample(wo, u)` and
-        `pdf(wo, wi)` in the local shading frame (normal +z), densities over solid angle.
+      brdf: `Lambertian`, `Phong`, `RoughConductor`, or any pytree with `eval(wo, wi)`,
+        `sample(wo, u)` and `pdf(wo, wi)` in the local shading frame (normal +z), densities over
+        solid angle.
       lights: one light or a sequence of them (`ConstantSky`, `SphereLight`, `TriangleLight`,
         `EnvironmentMap`, or anything with `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)` and
         `radiance_from(point, ω)` in world space).

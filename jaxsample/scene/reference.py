@@ -8,6 +8,11 @@ baseline when the dimension is 2):
 - `SphereLight`: the cone of directions in its own frame, t in [0, 1 - cos θ_max], dω = dt dφ.
 - `TriangleLight`: the triangle by area, y = a + v((1 - w)(b - a) + w(c - a)), dA = 2A v dv dw,
   dω = |cos θ_l| dA / d².
+- `ConstantSky` seen by a `RoughConductor`: the BRDF's own sampling space instead of the
+  hemisphere. With ω_i = T(u) its visible-normal reflection warp and p its density,
+  ∫ f_r L cos⁺θ_i dω_i = L ∫_[0,1]² f_r cos⁺θ_i / p du, and the integrand is F G2 / G1 (Heitz 2014),
+  smooth in u apart from a kink where ω_i crosses the horizon; the hemisphere grid would have to
+  resolve a lobe of width α (0.05 rad at α = 0.05, far less at α = 1e-3).
 - `EnvironmentMap`: texel by texel in (θ, φ), dω = sin θ dθ dφ.
 
 Gauss–Legendre panels in t (or v, θ) and the midpoint rule in φ (spectrally accurate for smooth
@@ -28,6 +33,7 @@ from .environment import EnvironmentMap, direction_from_uv
 from .sky import ConstantSky
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight
+from .rough_conductor import RoughConductor
 
 __all__ = ["reference_radiance"]
 
@@ -65,6 +71,8 @@ def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
                                    jnp.asarray(weights)))
 
     phi, w_phi = _midpoints(azimuth)
+    if isinstance(light, ConstantSky) and isinstance(brdf, RoughConductor):
+        return float(light.radiance) * _lobe_integral(brdf, wo_local, panels, order)
     if isinstance(light, ConstantSky):
         t, w_t = _panels(0.0, 1.0, panels, order)
         wi = _cap(frame, t, phi)
@@ -104,6 +112,41 @@ def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
         jacobian = 2.0 * np.pi * np.pi * np.sin(np.pi * uv[:, 1])
         return weighted(wi, jnp.asarray(texel), jnp.asarray(np.outer(w_s, w_t).ravel() * jacobian))
     raise TypeError(f"reference_radiance: no quadrature for light {type(light).__name__}")
+
+
+@jax.jit
+def _lobe_sum(brdf, wo_local, u, weights):
+    wi, pdf = brdf.sampler(wo_local).warp_with_pdf(u)
+    g = brdf.eval(wo_local, wi) * jnp.maximum(wi[..., 2], 0.0)
+    return jnp.sum(jnp.where(pdf > 0, g / jnp.where(pdf > 0, pdf, 1.0), 0.0) * weights)
+
+
+def _graded_toward_one(panels, order):
+    """Gauss–Legendre nodes on [0, 1]: half the panels uniform on [0, 1/2], half graded geometrically
+    from 1/2 to 1 − 1e-15 (what is left beyond weighs below 1e-15 of the integral)."""
+    x, w = gauss_legendre_nodes_weights(order)
+    half = panels // 2
+    graded = 1.0 - 0.5 * np.geomspace(1.0, 1e-15, panels - half + 1)[1:]
+    edges = np.concatenate([np.linspace(0.0, 0.5, half + 1), graded])
+    width = 0.5 * np.diff(edges)[:, None]
+    return (0.5 * (edges[:-1] + edges[1:])[:, None] + width * x[None, :]).ravel(), (width * w[None, :]).ravel()
+
+
+def _lobe_integral(brdf, wo_local, panels, order):
+    """∫ f_r cos⁺θ_i dω_i by Gauss–Legendre in the uniforms of the visible-normal reflection warp.
+
+    u₀ → 1 is the rim of the visible normals (normals turned perpendicular to ω_o), where a lobe of
+    small α crosses the horizon within 1 − u₀ ~ α²: its panels are graded toward 1. The horizon
+    kink left inside panels converges as O(h²), so twice `panels` are used in each coordinate: at
+    128 panels of 8 nodes the value is within 1e-5 relative of 256 panels' (α = 1e-3 to 0.3,
+    θ_o = 0.6 to 1.5; at 64 panels within 8e-5)."""
+    brdf = RoughConductor(brdf.alpha, brdf.eta, brdf.k, fresnel=brdf.fresnel, sampling="visible")
+    if float(wo_local[2]) <= 0:
+        return 0.0
+    u0, w0 = _graded_toward_one(2 * panels, order)
+    u1, w1 = _panels(0.0, 1.0, 2 * panels, order)
+    grid = np.stack(np.meshgrid(u0, u1, indexing="ij"), -1).reshape(-1, 2)
+    return float(_lobe_sum(brdf, wo_local, jnp.asarray(grid), jnp.asarray(np.outer(w0, w1).ravel())))
 
 
 def reference_radiance(point, normal, wo, brdf, lights, *, panels: int = 64, order: int = 8,
