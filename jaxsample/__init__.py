@@ -24,6 +24,7 @@ from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, 
                        TruncatedExponential, UniformBox, UniformCone, UniformDisk, UniformHemisphere, UniformSphere,
                        UniformTriangle, VonMisesFisher, parameter, point_method, static_field)
 from .samplers import Bilinear, HenyeyGreenstein, Linear, Normal, Normal2D, Tent
+from .samplers import CosineSphericalTriangle, SphericalRectangle, SphericalTriangle
 from .samplers import GGX, Beckmann, MicrofacetReflection, VisibleNormals
 
 __version__ = "0.1.0"
@@ -54,6 +55,8 @@ __all__ = [
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear",
     # microfacet normal distributions and the lobes built on them
     "GGX", "Beckmann", "VisibleNormals", "MicrofacetReflection",
+    # solid-angle sampling of the triangles and rectangles a point sees
+    "SphericalTriangle", "CosineSphericalTriangle", "SphericalRectangle",
     # generic constructions
     "Rejection", "Transformed", "Mixture",
     # writing your own: the base class and its parameter declarations

@@ -28,6 +28,8 @@ from .polynomial import Bilinear, Linear, Tent
 from .power import Power
 from .rejection import Rejection, RejectionInfo
 from .sphere import UniformHemisphere, UniformSphere
+from .spherical_rectangle import SphericalRectangle
+from .spherical_triangle import CosineSphericalTriangle, SphericalTriangle
 from .transformed import Transformed
 from .triangle import UniformTriangle
 from .vmf import VonMisesFisher
@@ -39,4 +41,5 @@ __all__ = [
     "RejectionInfo", "Transformed", "Mixture",
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear",
     "GGX", "Beckmann", "MicrofacetDistribution", "VisibleNormals", "MicrofacetReflection",
+    "SphericalTriangle", "CosineSphericalTriangle", "SphericalRectangle",
 ]

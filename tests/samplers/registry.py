@@ -367,6 +367,41 @@ _MICROFACET_LOBE_CASES = (
     _C((0.3, 0.3, MICROFACET_OBLIQUE), chi2=False), _C((1e-2, 1e-2, (0.0, 0.0, 1.0)), chi2=False),
     _C((0.3, 0.3, MICROFACET_BELOW), chi2=False))
 
+# Solid-angle sampling of spherical triangles and rectangles (jaxsample issue 24, part 2): from a
+# near-hemisphere (the viewer 0.05 from the plane, inside) down to 1e-8 sr, where float32 Arvo and
+# Ureña formulas fail (benchmarks/float32_spherical.py).
+
+def spherical_triangle(a, b, c):
+    return js.SphericalTriangle(a, b, c)
+
+
+def cosine_spherical_triangle(a, b, c, normal):
+    return js.CosineSphericalTriangle(a, b, c, normal)
+
+
+def spherical_rectangle(corner, edge_u, edge_v):
+    return js.SphericalRectangle(corner, edge_u, edge_v)
+
+
+SPHERICAL_OCTANT = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))                 # π/2 sr
+SPHERICAL_HEMISPHERE = ((1.0, 0.0, -0.05), (-0.5, 0.866, -0.05), (-0.5, -0.866, -0.05))  # 5.77 sr
+SPHERICAL_MEDIUM = ((0.3, -0.2, 1.0), (0.75, -0.155, 1.09), (0.39, 0.205, 0.865))       # 0.058 sr
+SPHERICAL_SMALL = ((0.3, -0.2, 1.0), (0.3179, -0.19821, 1.00358), (0.30358, -0.18389, 0.99463))  # 1.0e-4 sr
+SPHERICAL_TINY = ((0.3, -0.2, 1.0), (0.300179, -0.1999821, 1.0000358), (0.3000358, -0.1998389, 0.9999463))  # 1.0e-8 sr
+SPHERICAL_RECTANGLE_SQUARE = ((-1.0, -1.0, 1.0), (2.0, 0.0, 0.0), (0.0, 2.0, 0.0))      # 2π/3 sr
+SPHERICAL_RECTANGLE_NEAR = ((-1.0, -1.5, -0.05), (2.0, 0.0, 0.0), (0.0, 2.0, 0.0))      # 5.94 sr
+SPHERICAL_RECTANGLE_SMALL = ((0.4, -0.3, 1.0), (0.0118, 0.00236, 0.00118), (-0.00236, 0.0118, 0.0))  # 1.0e-4 sr
+SPHERICAL_RECTANGLE_TINY = ((0.4, -0.3, 1.0), (1.18e-4, 2.36e-5, 1.18e-5), (-2.36e-5, 1.18e-4, 0.0))  # 1.0e-8 sr
+# In, on and outside the shapes above: the octant's centre, a vertex, the antipode of +z, ...
+SPHERICAL_POINTS = np.array([[1.0, 1.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.3, -0.2, 1.0],
+                             [-0.6, 0.0, -0.8], [0.4, -0.3, 1.0]])
+SPHERICAL_POINTS = SPHERICAL_POINTS / np.linalg.norm(SPHERICAL_POINTS, axis=-1, keepdims=True)
+# Round trips away from u₁ = 0 (the apex b, or the corner edge of the rectangle's sweep), where u₀ is
+# not determined by the direction; the float32 tolerance is what rounding the sample costs at 1e-4 sr
+# (~ε/θ) and at the near-hemisphere (the map's shear); the 1e-8 sr cases are checked in
+# tests/samplers/test_spherical_polygons.py against that rounding itself.
+_SPHERICAL_INVERSE = Inverse(tol32=3e-4, tol64=1e-9, jacobian32=2e-3, jacobian64=1e-8, margin=1e-3, n=2048)
+
 ENTRIES = [
     # ---- directions (solid angle) ----
     Entry("UniformSphere", sphere, (_C(()),), DIRECTION_POINTS, 400_000, 128, 65_536, _DIRECTIONAL_INVERSE,
@@ -540,6 +575,22 @@ ENTRIES = [
           (_C((0.3, 0.3, MICROFACET_OBLIQUE)), _C((1.0, 1e-3, MICROFACET_SKEW), chi2=False),
            _C((1.0, 1.0, MICROFACET_GRAZING), chi2=False)),
           DIRECTION_POINTS, 400_000, 128, 65_536, _MICROFACET_REFLECTION_INVERSE, positive_at_edges=False),
+    # ---- spherical triangles and rectangles (jaxsample issue 24, part 2) ----
+    # Chi-square at a near-hemisphere, a medium and a 1e-4 sr shape; 1e-8 sr for the support and the
+    # gradients (its round trip, against the rounding of the sample, is in test_spherical_polygons.py).
+    Entry("SphericalTriangle", spherical_triangle,
+          (_C(SPHERICAL_HEMISPHERE), _C(SPHERICAL_MEDIUM), _C(SPHERICAL_SMALL), _C(SPHERICAL_OCTANT, chi2=False),
+           _C(SPHERICAL_TINY, chi2=False, inverse=False)),
+          SPHERICAL_POINTS, inverse=_SPHERICAL_INVERSE),
+    Entry("CosineSphericalTriangle", cosine_spherical_triangle,
+          (_C(SPHERICAL_OCTANT + ((0.3, -0.2, 0.9),)), _C(SPHERICAL_SMALL + ((1.0, 0.0, 0.0),), chi2=False),
+           _C(SPHERICAL_TINY + ((0.0, 0.0, -1.0),), chi2=False, inverse=False)),
+          # Its float64 code is SphericalTriangle's (checked there) and the bilinear warp's arithmetic.
+          SPHERICAL_POINTS, inverse=_SPHERICAL_INVERSE, gradients64=False),
+    Entry("SphericalRectangle", spherical_rectangle,
+          (_C(SPHERICAL_RECTANGLE_NEAR), _C(SPHERICAL_RECTANGLE_SQUARE), _C(SPHERICAL_RECTANGLE_SMALL),
+           _C(SPHERICAL_RECTANGLE_TINY, chi2=False, inverse=False)),
+          SPHERICAL_POINTS, inverse=_SPHERICAL_INVERSE),
 ]
 
 BY_NAME = {entry.name: entry for entry in ENTRIES}
