@@ -20,7 +20,7 @@ _A_MASKING = 26.0
 # there (its density (a - x) e^{-x²} keeps the exact a).
 _A_CUT = 30.0
 # Newton steps of the visible-slope inversion after the start (converged by 5 in float32 and 6 in
-# float64 over a ∈ [1e-4, ∞), u₀ ∈ [1e-200, 1 - 1e-15]: tests/samplers/test_microfacet.py), then
+# float64 over a ∈ {0} ∪ [1e-4, ∞), u₀ ∈ [2^-53, 1 - 1e-15]: tests/samplers/test_microfacet.py), then
 # one more step that carries the derivatives.
 _NEWTON_STEPS = 6
 
@@ -212,9 +212,11 @@ def _visible_slope(w1, w2, cut, u0):
     r_lo, _ = residual(lo)
     r_hi, _ = residual(hi)
     x = jnp.where(jnp.abs(r_hi) < jnp.abs(r_lo), hi, lo)
-    for _ in range(_NEWTON_STEPS):
+    def newton(_, x):
         r, slope = residual(x)
-        x = jnp.clip(x - safe_div(r, slope), lo, hi)
+        return jnp.clip(x - safe_div(r, slope), lo, hi)
+
+    x = jax.lax.fori_loop(0, _NEWTON_STEPS, newton, x)
     # The last step with derivatives: x is a constant, the residual carries d/d(w₁, w₂, a, u₀).
     log_mass, slope, target = terms(x, w1, w2, cut, u)
     step = safe_div(log_mass - target, jax.lax.stop_gradient(slope))

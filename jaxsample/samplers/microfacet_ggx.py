@@ -36,7 +36,7 @@ class GGX(MicrofacetDistribution):
         mz = m[..., 2]
         upper = mz > 0
         q = (m[..., 0] / ax) ** 2 + (m[..., 1] / ay) ** 2 + mz * mz
-        # q >= 1 for unit m and alpha <= 1; the guard only keeps log finite off the support.
+        # q >= min(1, 1/alpha²) > 0 for unit m; the guard only keeps log finite off the support.
         q = jnp.where(upper & (q > 0), q, 1.0)
         return jnp.where(upper, -jnp.log(np.pi * ax * ay) - 2.0 * jnp.log(q), -jnp.inf)
 
