@@ -263,7 +263,8 @@ def verdict_section(rows: list[dict], tiny: bool = False) -> list[str]:
             "not crossed by then is \"not reached\". A strategy whose RMSE is within "
             f"{verdicts.EXACT_ULPS} float32 ulps of the exact value at every n is \"exact\" (zero "
             "variance; detected from the curve). The baseline is plain uniform sampling (for e^{-t} cos t on "
-            "[0, ∞), which has no uniform density, Exponential(1)); QMC = scrambled Sobol' points.\n",
+            "[0, ∞), which has no uniform density, Exponential(1); for the GGX lobes cosine sampling; for the "
+            "triangle light area sampling converted to solid angle); QMC = scrambled Sobol' points.\n",
             f"Uncertainty: every RMSE is taken over k = {k} independent keys, so it carries a relative error of "
             f"about 1/√(2k) = {100 * rel:.0f} %. A time read off the curve carries that divided by |slope| (the "
             "fitted slope of log RMSE against log n; an error off by δ moves the crossing by δ/|slope|); a "
@@ -406,7 +407,8 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
             inverse = _piece("inverse_problem")
             progress("[scene: inverse problem]")
             result = inverse.run_inverse_problem(quick=quick, out_dir=str(out))
-            md += ["## Scene: recovering a Phong exponent and albedo, and the light's position, by gradient descent\n",
+            md += ["## Scene: recovering a Phong exponent and albedo, the light's position, and a GGX conductor's "
+                   "roughness under a quad light, by gradient descent\n",
                    "```\n" + inverse.markdown_summary(result).strip() + "\n```\n"]
             grid = _piece("shade_gradients")
             progress("[scene: shade's gradients against the reference]")

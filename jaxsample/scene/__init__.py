@@ -1,9 +1,10 @@
 """Layer 7, the scene: only what one shading point needs (docs/design.md).
 
-BRDFs (`Lambertian`, `Phong`, `RoughConductor`) work in the local shading frame (normal +z) and have `eval`,
-`sample` and `pdf`; lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `EnvironmentMap`) work in
-world space and have `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)`, `radiance_from(point, ω)` and
-`sampler(point)` (a `jaxsample.Sampler` of directions, for the statistical checks). `shade`
+BRDFs (`Lambertian`, `Phong`, `RoughConductor`) work in the local shading frame (normal +z) and have
+`eval`, `sample` and `pdf`; lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `QuadLight`,
+`EnvironmentMap`) work in world space and have `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)`,
+`radiance_from(point, ω)` and `sampler(point)` (a `jaxsample.Sampler` of directions, for the
+statistical checks). `shade`
 estimates the outgoing radiance by BRDF sampling, light sampling or MIS; `reference_radiance`
 gives the float64 quadrature value the tests hold it to. No ray tracer, no occlusion, no images.
 """
@@ -11,6 +12,7 @@ gives the float64 quadrature value the tests hold it to. No ray tracer, no occlu
 from .environment import EnvironmentDirections, EnvironmentMap
 from .lambertian import Lambertian
 from .phong import Phong, reflect
+from .quad_light import QuadLight, QuadLightDirections
 from .reference import reference_radiance
 from .rough_conductor import (FullNormalsReflection, RoughConductor, fresnel_conductor, fresnel_schlick,
                               normal_incidence_reflectance)
@@ -22,7 +24,7 @@ from .triangle_light import TriangleLight, TriangleLightDirections
 __all__ = [
     "Lambertian", "Phong", "reflect", "RoughConductor", "FullNormalsReflection",
     "fresnel_conductor", "fresnel_schlick", "normal_incidence_reflectance",
-    "ConstantSky", "SphereLight", "TriangleLight", "TriangleLightDirections", "EnvironmentMap",
-    "EnvironmentDirections",
+    "ConstantSky", "SphereLight", "TriangleLight", "TriangleLightDirections", "QuadLight", "QuadLightDirections",
+    "EnvironmentMap", "EnvironmentDirections",
     "shade", "shade_grad", "mis_weight", "STRATEGIES", "reference_radiance",
 ]

@@ -24,9 +24,10 @@ or when samples move across a silhouette (BRDF samples as the exponent or ω_o c
 there, and the per-sample derivative of a jump is 0. What each estimator misses is the boundary
 term of the silhouette (`jaxsample.estimators.boundary`), and `shade` adds it for every light that
 has a `silhouette(point)` (`SphereLight`: a cap; `TriangleLight`: a spherical triangle;
-`ConstantSky`: none, its radiance has no edge), by edge sampling: every evaluation (every pair,
-for "mis") also draws one point y uniformly by arc length on each such silhouette and adds a term
-of value 0 whose derivative is, per piece of the estimator with sample density q and sample flow V,
+`QuadLight`: a spherical quadrilateral; `ConstantSky`: none, its radiance has no edge), by edge
+sampling: every evaluation (every pair, for "mis") also draws one point y uniformly by arc length
+on each such silhouette and adds a term of value 0 whose derivative is, per piece of the estimator
+with sample density q and sample flow V,
 
     Δ(h)(y) q(y) ((v(y) − V(y)) · n(y)) / p_arc(y),      h = w f / p the piece's per-sample value,
 
@@ -314,8 +315,8 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
         `sample(wo, u)` and `pdf(wo, wi)` in the local shading frame (normal +z), densities over
         solid angle.
       lights: one light or a sequence of them (`ConstantSky`, `SphereLight`, `TriangleLight`,
-        `EnvironmentMap`, or anything with `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)` and
-        `radiance_from(point, ω)` in world space).
+        `QuadLight`, `EnvironmentMap`, or anything with `sample(point, u) -> (ω, L, p)`,
+        `pdf(point, ω)` and `radiance_from(point, ω)` in world space).
       key: a JAX key (`jax.random.key`, or a legacy `jax.random.PRNGKey`: the same stream), consumed
         once.
       n: radiance evaluations (any concrete integer, as in `jaxsample.estimate`; even for "mis",

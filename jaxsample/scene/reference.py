@@ -8,6 +8,8 @@ baseline when the dimension is 2):
 - `SphereLight`: the cone of directions in its own frame, t in [0, 1 - cos θ_max], dω = dt dφ.
 - `TriangleLight`: the triangle by area, y = a + v((1 - w)(b - a) + w(c - a)), dA = 2A v dv dw,
   dω = |cos θ_l| dA / d².
+- `QuadLight`: the rectangle by area, y = corner + s·edge_u + r·edge_v, dA = |edge_u × edge_v| ds dr,
+  dω = |cos θ_l| dA / d².
 - `ConstantSky` seen by a `RoughConductor`: the BRDF's own sampling space instead of the
   hemisphere. With ω_i = T(u) its visible-normal reflection warp and p its density,
   ∫ f_r L cos⁺θ_i dω_i = L ∫_[0,1]² f_r cos⁺θ_i / p du, and the integrand is F G2 / G1 (Heitz 2014),
@@ -33,6 +35,7 @@ from .environment import EnvironmentMap, direction_from_uv
 from .sky import ConstantSky
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight
+from .quad_light import QuadLight
 from .rough_conductor import RoughConductor
 
 __all__ = ["reference_radiance"]
@@ -99,6 +102,22 @@ def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
         radiance = np.where(cos_light < 0, float(light.radiance), 0.0)
         area_weights = twice_area * (vv * np.outer(w_v, w_w)).ravel()
         return weighted(jnp.asarray(wi), jnp.asarray(radiance), jnp.asarray(area_weights * np.abs(cos_light) / distance2))
+    if isinstance(light, QuadLight):
+        corner, edge_u, edge_v = (np.asarray(v, np.float64) for v in (light.corner, light.edge_u, light.edge_v))
+        s, w_s = _panels(0.0, 1.0, panels, order)
+        r, w_r = _panels(0.0, 1.0, panels, order)
+        ss, rr = np.meshgrid(s, r, indexing="ij")
+        y = corner + ss[..., None] * edge_u + rr[..., None] * edge_v
+        normal = np.cross(edge_u, edge_v)
+        area = np.linalg.norm(normal)
+        normal = normal / area
+        offset = (y - np.asarray(point)).reshape(-1, 3)
+        distance2 = np.sum(offset * offset, axis=-1)
+        wi = offset / np.sqrt(distance2)[:, None]
+        cos_light = wi @ normal
+        radiance = np.where(cos_light < 0, float(light.radiance), 0.0)
+        weights = area * np.outer(w_s, w_r).ravel() * np.abs(cos_light) / distance2
+        return weighted(jnp.asarray(wi), jnp.asarray(radiance), jnp.asarray(weights))
     if isinstance(light, EnvironmentMap):
         values = np.asarray(light.values, np.float64)
         rows, columns = values.shape

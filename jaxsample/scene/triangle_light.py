@@ -1,4 +1,4 @@
-"""A one-sided triangular area light, sampled by area and converted to solid angle."""
+"""A one-sided triangular area light, sampled by solid angle (Arvo 1995) or by area."""
 
 from __future__ import annotations
 
@@ -8,10 +8,11 @@ import jax
 import jax.numpy as jnp
 
 from ..samplers.base import Sampler, point_method
-from .._core.params import concrete_value
-from .._core.pytree import Pytree, parameter
+from .._core.params import check_choice, concrete_value
+from .._core.pytree import Pytree, parameter, static_field
 from ..samplers.domain import Directions
 from .._core.numerics import safe_div
+from ..samplers.spherical_triangle import SphericalTriangle
 from ..samplers.triangle import UniformTriangle
 
 
@@ -91,13 +92,24 @@ class TriangleLightDirections(Sampler):
         return Directions(axis=tuple(sum(vertices) / 3.0 - point))
 
 
+LIGHT_SAMPLING = ("solid_angle", "area")
+
+
 class TriangleLight(Pytree):
     """Triangle (a, b, c) emitting `radiance` L from its front face, the side its normal
     (b − a) × (c − a) points to (counter-clockwise vertices seen from the lit side).
 
-    Light sampling picks a uniform point of the triangle (`UniformTriangle`) and converts its area
-    density 1/A to solid angle at the shading point (`TriangleLightDirections`). Directions that
-    reach the back face are sampled too (the sampler does not know the side) but carry L = 0.
+    Light sampling (`sampling`): "solid_angle" (default), uniform over the spherical triangle the
+    triangle subtends at the shading point (`SphericalTriangle`, Arvo 1995), p(ω) = 1/Ω; "area", a
+    uniform point of the triangle (`UniformTriangle`) with its density 1/A converted to solid angle
+    (`TriangleLightDirections`), p(ω) = d²/(A |cos θ_l|), which grows toward the triangle's far and
+    grazing parts. Solid angle is the default by measurement: for the irradiance of a triangle of
+    circumradius 1 at distances 0.6, 2 and 10 its variance x time is 2.6-6.5x lower than area
+    sampling's (the report's "triangle_near" and "triangle_far" integrands), and in `shade`
+    (Lambertian, GGX α = 0.3, Phong 50; "light" and "mis") 1.2-21x lower in 17 of 18 cases and
+    0.8x (within timing noise) in the last. Directions that reach the back face are sampled too (the sampler does
+    not know the side) but carry L = 0. Both maps take the unit square's edges to the triangle's, so
+    light samples of this light follow its silhouette (no boundary term for them in `shade`).
 
     Parameters: non-degenerate vertices (checked by `UniformTriangle` when concrete), `radiance`
     >= 0. The light is transparent: nothing in this scene layer occludes.
@@ -107,40 +119,61 @@ class TriangleLight(Pytree):
     b: jax.Array
     c: jax.Array
     radiance: jax.Array = parameter(0.0)
+    sampling: str = static_field(default="solid_angle")
 
     def __post_init__(self):
+        check_choice("TriangleLight", "sampling", self.sampling, LIGHT_SAMPLING)
         UniformTriangle(self.a, self.b, self.c)  # validates the vertices when concrete
 
     @property
     def triangle(self) -> UniformTriangle:
         return UniformTriangle(jnp.asarray(self.a), jnp.asarray(self.b), jnp.asarray(self.c))
 
-    def sampler(self, point) -> TriangleLightDirections:
+    def _area_sampler(self, point) -> TriangleLightDirections:
         return TriangleLightDirections(self.triangle, jnp.asarray(point))
+
+    def sampler(self, point) -> Sampler:
+        """The light's directional sampler at `point` (world space): `sampling`'s."""
+        if self.sampling == "area":
+            return self._area_sampler(point)
+        point = jnp.asarray(point)
+        a, b, c = (jnp.asarray(v) - point for v in (self.a, self.b, self.c))
+        return SphericalTriangle(a, b, c)
 
     def silhouette(self, point):
         """The spherical triangle of directions that hit the triangle from `point`
         (`jaxsample.edges.SphericalTriangle`): its three arcs are where L_i and p jump."""
-        from ..edges.regions import SphericalTriangle
+        from ..edges.regions import SphericalTriangle as SphericalTriangleRegion
         point = jnp.asarray(point)
-        return SphericalTriangle(jnp.asarray(self.a) - point, jnp.asarray(self.b) - point, jnp.asarray(self.c) - point)
+        a, b, c = (jnp.asarray(v) - point for v in (self.a, self.b, self.c))
+        return SphericalTriangleRegion(a, b, c)
+
+    def _face_radiance(self, wi, dtype):
+        cos_light = jnp.sum(wi * self.triangle._normal()[0], axis=-1)
+        return jnp.where(cos_light < 0, self.radiance, 0.0).astype(dtype)
 
     def inside_values(self, point, wi):
         """(L_i, p(ω)) just inside the silhouette at rim directions `wi`: the radiance of the face
-        seen (L from the front, 0 from the back) and d²/(A |cos θ_l|) at the rim, d the distance
-        along wi to the triangle's plane."""
-        cos_light = jnp.sum(wi * self.triangle._normal()[0], axis=-1)
-        _, distance = _intersect(self.triangle, jnp.asarray(point), wi)  # to the plane, hit or not
-        pdf = safe_div(distance * distance, self.triangle.area * jnp.abs(cos_light))
-        radiance = jnp.where(cos_light < 0, self.radiance, 0.0).astype(pdf.dtype)
-        return radiance, pdf
+        seen (L from the front, 0 from the back) and the density there: 1/Ω, or d²/(A |cos θ_l|)
+        for area sampling, d the distance along wi to the triangle's plane."""
+        dtype = jnp.result_type(wi, float)
+        if self.sampling == "area":
+            cos_light = jnp.sum(wi * self.triangle._normal()[0], axis=-1)
+            _, distance = _intersect(self.triangle, jnp.asarray(point), wi)  # to the plane, hit or not
+            pdf = safe_div(distance * distance, self.triangle.area * jnp.abs(cos_light))
+        else:
+            omega = self.sampler(point).solid_angle
+            pdf = jnp.broadcast_to(safe_div(1.0, jnp.asarray(omega, dtype)), jnp.shape(wi)[:-1])
+        return self._face_radiance(wi, dtype), pdf.astype(dtype)
 
     def sample(self, point, u):
-        """(ω, L_i(ω), p(ω)) from uniforms u (..., 2); L = 0 where the back face is seen."""
-        sampler = self.sampler(point)
-        wi, pdf, cos_light = sampler._direction_and_pdf(self.triangle.warp(u))
-        radiance = jnp.where(cos_light < 0, self.radiance, 0.0).astype(pdf.dtype)
-        return wi, radiance, pdf
+        """(ω, L_i(ω), p(ω)) from uniforms u (..., 2); L = 0 where the back face is seen. Every
+        sample hits the triangle, so its radiance is not re-tested (rounding at the rim could flip it)."""
+        if self.sampling == "area":
+            wi, pdf, _ = self._area_sampler(point)._direction_and_pdf(self.triangle.warp(u))
+        else:
+            wi, pdf = self.sampler(point).warp_with_pdf(u)
+        return wi, self._face_radiance(wi, pdf.dtype), pdf
 
     def pdf(self, point, wi):
         return self.sampler(point).pdf(wi)
