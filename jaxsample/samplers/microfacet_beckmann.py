@@ -7,12 +7,38 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.scipy.special import erf, erfc, erfcx, ndtr, ndtri
+from jax.scipy.special import erf, erfc, ndtr, ndtri
 
 from .microfacet import MicrofacetDistribution, _normalized, _stack
 from .._core.numerics import safe_div, safe_sqrt
 
 SQRT_PI = float(np.sqrt(np.pi))
+
+
+def scaled_erfc(x):
+    """erfcx(x) = e^{x²} erfc(x), for JAX versions before 0.10.1 (which added
+    `jax.scipy.special.erfcx`). Below x = 3 the product itself (erfc(3) = 2.2e-5 keeps its relative
+    precision in float32); from 3 on the continued fraction erfcx(x) = (1/√π) / (x + (1/2)/(x + 1/(x +
+    (3/2)/(x + ...)))) (Abramowitz & Stegun 7.1.4), 40 levels deep, which converges there to float64
+    rounding. Negative x by erfcx(-x) = 2 e^{x²} - erfcx(x). Each branch sees only its own x (double
+    `where`), so no discarded inf reaches a gradient."""
+    x = jnp.asarray(x)
+    t = jnp.abs(x)
+    near = t < 3.0
+    t_near = jnp.where(near, t, 0.0)
+    t_far = jnp.where(near, 3.0, t)
+    fraction = t_far
+    for k in range(40, 0, -1):
+        fraction = t_far + (0.5 * k) / fraction
+    value = jnp.where(near, jnp.exp(t_near * t_near) * erfc(t_near), 1.0 / (SQRT_PI * fraction))
+    x_negative = jnp.where(x < 0, x, 0.0)
+    return jnp.where(x < 0, 2.0 * jnp.exp(x_negative * x_negative) - value, value)
+
+
+try:  # JAX >= 0.10.1
+    from jax.scipy.special import erfcx
+except ImportError:  # older JAX: the continued fraction above
+    erfcx = scaled_erfc
 # Beyond a = cot θ / alpha = 26, erfc(a) and e^{-a²} are below float64's resolution of 1: the
 # masking terms that carry them are dropped there (a is capped, not divided out).
 _A_MASKING = 26.0
