@@ -276,7 +276,7 @@ SourceLike = Union[str, Source]
 
 
 def as_source(uniforms: SourceLike) -> Source:
-    """"random" | "stratified" | "sobol" (default settings) or a `Source` instance."""
+    """"random" | "stratified" | "sobol" | "lattice" (default settings) or a `Source` instance."""
     if isinstance(uniforms, Source):
         return uniforms
     if uniforms == "random":
@@ -285,7 +285,12 @@ def as_source(uniforms: SourceLike) -> Source:
         return Stratified()
     if uniforms == "sobol":
         return Sobol()
-    raise ValueError(f"uniforms: must be 'random', 'stratified', 'sobol' or a Source; got {uniforms!r}")
+    # The point sets of their own modules (imported here: they subclass `Source`).
+    if uniforms == "lattice":
+        from .lattice import Lattice
+        return Lattice()
+    raise ValueError(f"uniforms: must be 'random', 'stratified', 'sobol', 'lattice' or a Source; "
+                     f"got {uniforms!r}")
 
 
 def uniform_block(uniforms: SourceLike, key: jax.Array, offset, count: int, dims: int, *,

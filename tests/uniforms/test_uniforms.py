@@ -222,7 +222,7 @@ def test_stratified_one_point_per_cell():
 
 def test_invalid_arguments_raise():
     with pytest.raises(ValueError, match="uniforms"):
-        U.as_source("halton")
+        U.as_source("no-such-source")
     with pytest.raises(ValueError, match="replicates"):
         U.Sobol(replicates=1)
     with pytest.raises(ValueError, match="total"):

@@ -1,0 +1,98 @@
+"""Shared pieces of the replicated point sets (`lattice`, `halton`, `lhs`): the layout of R
+interleaved replicates, per-replicate random words, and parameter checks.
+
+Layout (the convention of `Source`): global index g belongs to replicate g mod R, as its point
+g div R. `replicate_layout` returns the point indices and replicate numbers of a window in one
+of two shapes: when the window starts at a multiple of R and holds a multiple of R points (every
+estimator chunk), the lanes are (count / R, R), row b holding the points offset / R + b of every
+replicate, so per-replicate constants broadcast along rows (no gather); otherwise the lanes are
+(count,) and the constants are gathered by replicate number.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .index import Index, as_index, divmod_index, floordiv, index_range
+from .philox import _alignment, _u32, philox4x32
+
+# Stream words (third Philox counter word) of the point sets' randomizations. They continue the
+# list in `philox` (0 random, 1 jitter, 2 Sobol' scramble) with tags far from it, so that another
+# source drawing with the same key never reads the same Philox blocks.
+STREAM_LATTICE = 0x4C415454   # "LATT": the lattice shifts
+STREAM_HALTON = 0x48414C54    # "HALT": the digit permutations and tails
+STREAM_LHS = 0x4C485321       # "LHS!": the stratum permutations and the jitter
+
+
+def check_flag(owner: str, name: str, value) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{owner}: parameter '{name}' must be True or False; got {value!r}")
+    return bool(value)
+
+
+def check_dims(owner: str, dims: int, limit: int) -> int:
+    if not isinstance(dims, (int, np.integer)) or not 1 <= dims <= limit:
+        raise ValueError(f"{owner}: parameter 'dims' must be an integer in [1, {limit}]; got {dims!r}")
+    return int(dims)
+
+
+def replicate_words(seed, replicates: int, columns: int, stream: int, word: int = 0):
+    """Four (replicates, columns) uint32 arrays: Philox of (r, c, stream, word) under the seed.
+
+    Each (replicate, column) pair reads its own counter, so the words are independent across
+    replicates and columns (the property the point sets' error bars rest on)."""
+    replicate = jnp.arange(replicates, dtype=jnp.uint32)[:, None]
+    column = jnp.arange(columns, dtype=jnp.uint32)[None, :]
+    replicate, column = jnp.broadcast_arrays(replicate, column)
+    return philox4x32((replicate, column, jnp.full_like(column, _u32(stream)), jnp.full_like(column, _u32(word))),
+                      (seed[..., 0, None, None], seed[..., 1, None, None]))
+
+
+class Layout:
+    """Point indices (`point`, an `Index`) and replicate numbers of a window; `take(table)` reads
+    a per-replicate table (first axis R) at each lane's replicate, broadcastable to `shape`."""
+
+    def __init__(self, offset, count: int, replicates: int, aligned):
+        self.replicates = replicates
+        start = as_index(offset, count)
+        static_offset = isinstance(offset, (int, np.integer)) and not isinstance(offset, (bool, np.bool_))
+        offset_ok = (static_offset and int(offset) % replicates == 0) or _alignment(aligned) % replicates == 0
+        self.rows = count % replicates == 0 and offset_ok and count > 0
+        if self.rows:
+            per = count // replicates
+            point = index_range(floordiv(start, replicates), per)
+            self.point = Index(None if point.hi is None else point.hi[:, None], point.lo[:, None])
+            self.replicate = None
+            self.shape = (per, replicates)
+        else:
+            point, replicate = divmod_index(index_range(start, count), replicates)
+            self.point = point
+            self.replicate = replicate.astype(jnp.int32)
+            self.shape = (count,)
+
+    def take(self, table):
+        if self.rows:
+            return table[None, :]
+        return table[self.replicate]
+
+    def full(self, x):
+        """x broadcast to the lanes' shape (what `Source.lanes` hands over)."""
+        return jnp.broadcast_to(x, self.shape)
+
+
+def stack_lanes(lanes, shape_count: int):
+    """(count, dims) points from one group of lanes in C order (`Source.block`'s form)."""
+    return jnp.stack([lane.reshape(shape_count) for lane in lanes], axis=-1)
+
+
+def wide_mulhi(x: jax.Array, multiplier) -> jax.Array:
+    """floor(x m / 2^32) for uint32 x and a uint32 array or constant m (exact, in uint64)."""
+    with jax.enable_x64(True):
+        product = x.astype(jnp.uint64) * jnp.asarray(multiplier).astype(jnp.uint64)
+        return (product >> jnp.uint64(32)).astype(jnp.uint32)
+
+
+__all__ = ["Layout", "replicate_words", "check_dims", "check_flag", "stack_lanes", "wide_mulhi",
+           "STREAM_LATTICE", "STREAM_HALTON", "STREAM_LHS"]

@@ -1,0 +1,281 @@
+"""The replicated point sets: rank-1 lattice (`Lattice`), scrambled Halton (`Halton`) and Latin
+hypercube (`LatinHypercube`).
+
+For each: the points equal their closed form (computed here in NumPy with Python integers), the
+randomization makes every point uniform (chi-square over keys) and is independent across
+replicates and dimensions (correlation over keys), the estimate is unbiased, and the error falls
+at about the literature's rate on a smooth integrand. Every statistical check states its
+false-failure rate (FFR) for a correct source; tests/mutations.py records defects they catch.
+"""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxsample as js
+from jaxsample import uniforms as U
+from jaxsample.uniforms import lattice as lattice_module
+
+jax.config.update("jax_debug_key_reuse", True)
+
+KEYS = iter(jax.random.split(jax.random.key(20261203), 256))
+
+
+def chi2_upper(dof, z):
+    """Wilson–Hilferty: the chi-square(dof) quantile at normal quantile z."""
+    return dof * (1 - 2 / (9 * dof) + z * np.sqrt(2 / (9 * dof))) ** 3
+
+
+Z_1E6 = 4.753  # one-sided normal quantile for 1e-6
+
+
+def chi2_stat(u, bins):
+    counts = np.bincount(np.minimum((u * bins).astype(np.int64), bins - 1), minlength=bins)
+    expected = len(u) / bins
+    return float(np.sum((counts - expected) ** 2 / expected)), bins - 1
+
+
+def uniform_ok(u, bins=64):
+    """Both tails of the chi-square at 1e-6 each: FFR 2e-6 per call (independent uniforms)."""
+    stat, dof = chi2_stat(u, bins)
+    return chi2_upper(dof, -Z_1E6) < stat < chi2_upper(dof, Z_1E6)
+
+
+def correlation_ok(a, b):
+    """|Pearson r| < 5.3/sqrt(N): r ~ N(0, 1/N) for independent variables, FFR 1.2e-7."""
+    return abs(np.corrcoef(a, b)[0, 1]) < 5.3 / np.sqrt(len(a))
+
+
+def rev(value, bits):
+    return int(format(value, f"0{bits}b")[::-1], 2)
+
+
+def unit32(words):
+    """bits_to_unit's float32 grid from uint32 words (NumPy): (top 23 bits + 1/2) 2^-23."""
+    return ((np.asarray(words, np.uint64) >> 9).astype(np.float64) + 0.5) * 2.0 ** -23
+
+
+# ------------------------------------------------------------------------------------------------
+# Lattice
+# ------------------------------------------------------------------------------------------------
+
+def test_lattice_points_are_the_rank1_rule_in_radical_inverse_order():
+    """Point i of the unshifted sequence is frac(phi_2(i) z): for i < 2^m, (rev_m(i) z mod 2^m) / 2^m
+    (Python integers); each prefix of 2^m points is the whole rule {k z / 2^m mod 1}; a 64-bit
+    index gives the top 32 bits of frac(rev64(i) z / 2^64)."""
+    dims, m = 6, 7
+    z = [int(v) for v in U.lattice_generating_vector(dims)]
+    assert z[:4] == [1, 182667, 469891, 498753]   # Kuo's lattice-32001-1024-1048576.3600
+    points = np.asarray(U.lattice_points(jnp.arange(1 << m, dtype=jnp.uint32), dims)).astype(np.int64)
+    for i in range(1 << m):
+        expected = [((rev(i, m) * zj) % (1 << m)) << (32 - m) for zj in z]
+        assert list(points[i]) == expected, i
+    rule = {tuple(((k * zj) % (1 << m)) << (32 - m) for zj in z) for k in range(1 << m)}
+    assert {tuple(p) for p in points} == rule
+    wide = [(1 << 32) + 5, (1 << 40) + (3 << 33) + 12345, (1 << 64) - 1]
+    index = U.index.Index(jnp.asarray([w >> 32 for w in wide], jnp.uint32),
+                          jnp.asarray([w & 0xFFFFFFFF for w in wide], jnp.uint32))
+    got = np.asarray(U.lattice_points(index, dims)).astype(np.int64)
+    for row, i in zip(got, wide):
+        assert list(row) == [((rev(i, 64) * zj) % (1 << 64)) >> 32 for zj in z]
+
+
+@pytest.mark.parametrize("tent", [True, False])
+def test_lattice_source_is_the_shifted_rule_with_the_tent(tent):
+    """Global index g = R p + r is frac(phi_2(p) z + Delta_r), then the tent as a bijection of the
+    32-bit grid; checked word for word through bits_to_unit's float32 grid, on a narrow window
+    and on one past 2^32."""
+    source, dims = U.Lattice(replicates=4, tent=tent), 5
+    seed = U.seed_from_key(next(KEYS))
+    shifts = np.asarray(source.shifts(seed, dims)).astype(np.int64)
+    z = [int(v) for v in U.lattice_generating_vector(dims)]
+    for offset in (8, (1 << 34) + 4):
+        got = np.asarray(source.block(seed, offset, 64, dims)).astype(np.float64)
+        expected = np.empty_like(got)
+        for row, g in enumerate(range(offset, offset + 64)):
+            p, r = divmod(g, 4)
+            for j in range(dims):
+                w = (((rev(p, 64) * z[j]) % (1 << 64) >> 32) + shifts[r, j]) % (1 << 32)
+                if tent:
+                    w = 2 * w if w < 1 << 31 else (1 << 33) - 1 - 2 * w
+                expected[row, j] = unit32(w)
+        np.testing.assert_array_equal(got, expected)
+
+
+def test_lattice_tent_is_a_bijection_of_the_grid_close_to_the_tent():
+    w = np.arange(0, 1 << 32, 4099, dtype=np.uint64)
+    t = np.asarray(lattice_module.tent_bits(jnp.asarray(w, jnp.uint32))).astype(np.float64)
+    x = w.astype(np.float64) / 2 ** 32
+    assert np.abs(t / 2 ** 32 - (1 - np.abs(2 * x - 1))).max() <= 2.0 ** -32
+    small = np.asarray(lattice_module.tent_bits(jnp.arange(1 << 16, dtype=jnp.uint32) << 16))
+    assert len(np.unique(small >> 16)) == 1 << 16 and set(small & 0xFFFF) <= {0, 0xFFFF}
+
+
+def test_lattice_prefixes_are_lattices_in_every_replicate():
+    """Every power-of-two prefix of every replicate has one point in each of 2^m cells of every
+    coordinate (deterministic: z_j odd); with the tent each cell of 2^(m-1) holds two."""
+    source = U.Lattice(replicates=3, tent=False)
+    points = np.asarray(U.uniform_block(source, next(KEYS), 0, 3 * 1024, 32))
+    for r in range(3):
+        for m in (4, 10):
+            cells = (points[r::3][: 1 << m] * (1 << m)).astype(int)
+            for j in range(32):
+                assert np.bincount(cells[:, j], minlength=1 << m).max() == 1
+
+
+# ------------------------------------------------------------------------------------------------
+# Every source
+# ------------------------------------------------------------------------------------------------
+
+SOURCES = {
+    "lattice": lambda r: U.Lattice(replicates=r),
+}
+
+
+@pytest.mark.parametrize("name", sorted(SOURCES))
+def test_chunking_and_lanes_never_change_the_points(name):
+    """Windows, traced offsets and the estimators' lanes give the points of one big block."""
+    source, dims, total = SOURCES[name](4), 3, 4096
+    key = next(KEYS)
+    whole = np.asarray(U.uniform_block(source, jax.random.clone(key), 0, total, dims, total=total))
+    cuts = [0, 1365, 2730, 4095, total]
+    pieces = [np.asarray(U.uniform_block(source, jax.random.clone(key), a, b - a, dims, total=total))
+              for a, b in zip(cuts, cuts[1:])]
+    np.testing.assert_array_equal(whole, np.concatenate(pieces))
+    traced = jax.jit(lambda off: U.uniform_block(source, jax.random.clone(key), off, 1365, dims, total=total))(1027)
+    np.testing.assert_array_equal(np.asarray(traced), whole[1027:2392])
+    seed = U.seed_from_key(jax.random.clone(key))
+    lanes = jax.jit(lambda off: source.lanes(seed, off, 1024, dims, total=total, aligned=1024))(jnp.uint32(2048))
+    flat = np.concatenate([np.stack([np.asarray(c).reshape(-1) for c in group], -1) for group in lanes])
+    assert len(lanes) == 1
+    np.testing.assert_array_equal(flat, whole[2048:3072])
+    assert whole.min() > 0 and whole.max() < 1
+
+
+@pytest.mark.parametrize("name", sorted(SOURCES))
+def test_every_point_is_uniform_over_keys(name):
+    """Points 0 and 5 of replicate 0 over 2^13 keys are uniform in each of 4 coordinates
+    (two-sided chi-square, 64 bins: FFR 2e-6 each, 1.6e-5 in all). Point 0 of an unshifted lattice
+    is 0 in every coordinate, and every unrandomized set is one fixed point over keys."""
+    keys = jax.random.split(next(KEYS), 1 << 13)
+    source = SOURCES[name](2)
+    points = np.asarray(jax.jit(jax.vmap(lambda k: U.uniform_block(source, k, 0, 12, 4, total=12)))(keys))
+    for row in (0, 10):
+        for j in range(4):
+            assert uniform_ok(points[:, row, j]), (row, j)
+    assert not uniform_ok(np.sqrt(points[:, 0, 0]))
+
+
+@pytest.mark.parametrize("name", sorted(SOURCES))
+def test_randomizations_are_independent_across_replicates_and_dimensions(name):
+    """Over 2^13 keys, point 0 of replicates 0 and 1 in 6 coordinates: every pair of coordinates
+    and the two replicates of a coordinate are uncorrelated (|r| < 5.3/sqrt(N): FFR 1.2e-7 a pair,
+    21 pairs, 2.5e-6 in all). Shared across coordinates, the lattice's shifts make point 0 the same
+    in every coordinate (r = 1); tests/mutations.py records that this test catches it."""
+    keys = jax.random.split(next(KEYS), 1 << 13)
+    source, dims = SOURCES[name](2), 6
+    points = np.asarray(jax.jit(jax.vmap(lambda k: U.uniform_block(source, k, 0, 8, dims, total=8)))(keys))
+    for a in range(dims):
+        for b in range(a + 1, dims):
+            assert correlation_ok(points[:, 0, a], points[:, 0, b]), (a, b)
+        assert correlation_ok(points[:, 0, a], points[:, 1, a]), a
+
+
+def smooth_product(x):
+    """prod_j (1 + (e^(x_j) - e + 1) / 2): smooth, not periodic, integral exactly 1."""
+    return np.prod(1.0 + 0.5 * (np.exp(x) - (np.e - 1.0)), axis=-1)
+
+
+def additive(x):
+    """sum_j (x_j^2 - 1/3) + 1: additive, integral exactly 1."""
+    return np.sum(x * x - 1.0 / 3.0, axis=-1) + 1.0
+
+
+def float64_points(source, key, count, dims):
+    with jax.enable_x64(True):
+        return np.asarray(U.uniform_block(source, key, 0, count, dims, dtype=jnp.float64, total=count))
+
+
+@pytest.mark.parametrize("name", sorted(SOURCES))
+def test_estimates_are_unbiased_over_keys(name):
+    """The mean over 400 keys of the R = 4 replicate estimate (64 points each) of the smooth product
+    in 3 dimensions is within 4 standard errors of its integral 1 (FFR 6e-5; the brief's 3-sigma
+    rule would be 2.7e-3 per source): float64 points, so that the check sees the estimator's bias,
+    not float32's rounding."""
+    source = SOURCES[name](4)
+    keys = jax.random.split(next(KEYS), 400)
+    with jax.enable_x64(True):
+        points = np.asarray(jax.jit(jax.vmap(
+            lambda k: U.uniform_block(source, k, 0, 256, 3, dtype=jnp.float64, total=256)))(keys))
+    estimates = smooth_product(points).mean(axis=1)
+    spread = estimates.std(ddof=1) / np.sqrt(len(estimates))
+    assert spread > 0
+    assert abs(estimates.mean() - 1.0) < 4 * spread, (estimates.mean() - 1.0, spread)
+
+
+# (source, dims, integrand, slope bound, per-replicate sizes): the fitted log-log slope of the RMSE
+# must be at most the bound; literature slopes in the comments (docs/literature.md 3.1, 3.2).
+SLOPES = [
+    ("lattice", 2, "product", -1.6, (64, 4096)),   # tent lattice, smooth: about N^-2
+    ("lattice", 4, "product", -1.3, (64, 4096)),
+]
+
+
+def fitted_slope(points, replicates, integrand, sizes):
+    """Slope of log RMSE against log n over the replicates' prefixes of n points (powers of two
+    from sizes[0] to sizes[1]), with the RMSE over the R independent replicates."""
+    f = {"product": smooth_product, "additive": additive}[integrand]
+    values = f(points).reshape(-1, replicates)            # (points per replicate, R)
+    ns, rmse = [], []
+    n = sizes[0]
+    while n <= sizes[1]:
+        means = values[:n].mean(axis=0)
+        ns.append(n)
+        rmse.append(np.sqrt(np.mean((means - 1.0) ** 2)))
+        n *= 4
+    return float(np.polyfit(np.log(ns), np.log(rmse), 1)[0]), rmse
+
+
+@pytest.mark.parametrize("name,dims,integrand,bound,sizes", SLOPES)
+def test_error_falls_at_the_literature_rate(name, dims, integrand, bound, sizes):
+    """RMSE over 32 replicates against the prefix size n: the fitted slope is at most `bound`
+    (tolerant bounds below the literature's rates; a change of rate, not of constant, fails)."""
+    replicates = 32
+    source = SOURCES[name](replicates)
+    points = float64_points(source, next(KEYS), replicates * sizes[1], dims)
+    slope, rmse = fitted_slope(points, replicates, integrand, sizes)
+    assert slope < bound, (slope, rmse)
+
+
+def test_lattice_without_the_tent_converges_at_first_order():
+    """The plain shifted lattice on the (non-periodic) product: slope about -1, far from the tent's."""
+    points = float64_points(U.Lattice(replicates=32, tent=False), next(KEYS), 32 * 4096, 2)
+    slope, _ = fitted_slope(points, 32, "product", (64, 4096))
+    assert -1.4 < slope < -0.7
+
+
+@pytest.mark.parametrize("name", sorted(SOURCES))
+def test_estimators_stream_the_source_under_jit_and_vmap(name):
+    """js.estimate with the source inside jit and vmap over keys: each estimate within 5 of its
+    stderr of pi/2 (the cosine-cubed integral over the hemisphere), the stderr from R = 8 replicates."""
+    source = SOURCES[name](8)
+    f = lambda w: w[2] ** 3
+    d = js.UniformHemisphere()
+    keys = jax.random.split(next(KEYS), 4)
+    est = jax.jit(jax.vmap(lambda k: js.estimate(f, d, k, 8 * 512, uniforms=source)))(keys)
+    error = np.abs(np.asarray(est.mean) - np.pi / 2)
+    stderr = np.asarray(est.stderr)
+    assert np.all(stderr > 0) and np.all(error < 5 * stderr + 2e-6), (error, stderr)
+
+
+def test_registered_names_and_invalid_parameters():
+    assert U.as_source("lattice") == U.Lattice()
+    with pytest.raises(ValueError, match="replicates"):
+        U.Lattice(replicates=1)
+    with pytest.raises(ValueError, match="tent"):
+        U.Lattice(tent="yes")
+    with pytest.raises(ValueError, match=r"dims.*\[1, 1024\]"):
+        U.Lattice().block(U.seed_from_key(next(KEYS)), 0, 16, 1025)
