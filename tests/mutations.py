@@ -1089,6 +1089,17 @@ MUTATIONS = [
       "point = index_range(floordiv(start, replicates), per)", "point = index_range(start, per)",
       ("tests/uniforms/test_point_sets.py::test_chunking_and_lanes_never_change_the_points",),
       "the estimators' (count / R, R) lanes index points by the global offset, not offset / R"),
+    # ---- issue 26: Sobol' to 1024 dimensions, linear matrix scrambling, padding ----
+    M("sobol-joe-kuo-1024-digit", "jaxsample/uniforms/new_joe_kuo_6_21201_1024.txt",
+      "1024 13 3538 1 1 5 11 11 33 37 29 263 1019 657 1453 7807",
+      "1024 13 3538 1 1 5 11 11 33 37 29 263 1019 657 1453 7805",
+      ("tests/uniforms/test_sobol_qmc.py::test_sobol_has_1024_joe_kuo_dimensions",),
+      "one initial direction integer of dimension 1024 mistyped (still odd and below 2^13)"),
+    M("sobol-recurrence-without-m-k-s", "jaxsample/uniforms/sobol.py",
+      "value = first ^ (first << degree.astype(np.uint64))",
+      "value = first << degree.astype(np.uint64)",
+      ("tests/uniforms/test_sobol_qmc.py::test_every_joe_kuo_dimension_is_a_net_with_the_sobol_t_bound",),
+      "the Joe-Kuo recurrence drops its m_(k-s) term (generator matrices no longer nonsingular)"),
 ]
 
 

@@ -17,7 +17,7 @@ Sources
 - `Stratified(replicates)` ("stratified"): jittered sampling; see its docstring for exactly which
   dimensions are stratified.
 - `Sobol(replicates)` ("sobol"): Sobol' points (Joe & Kuo direction numbers, new-joe-kuo-6.21201,
-  128 dimensions embedded here), each replicate randomized by an independent hash-based nested
+  1024 dimensions, `sobol.MAX_SOBOL_DIMS`), each replicate randomized by an independent hash-based nested
   uniform (Owen) scramble (Laine & Karras 2011; Burley, "Practical Hash-based Owen Scrambling",
   JCGT 2020).
 
@@ -199,7 +199,7 @@ class Stratified(Source):
 
 
 class Sobol(Source):
-    """Owen-scrambled Sobol' points in R independent replicates (default 16), up to 128 dims.
+    """Owen-scrambled Sobol' points in R independent replicates (default 16), up to 1024 dims.
 
     Replicate r (global indices g with g mod R = r) is the Sobol' sequence in natural order,
     point g div R, with each coordinate j passed through `owen_scramble` under its own 32-bit seed
@@ -231,7 +231,7 @@ class Sobol(Source):
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         if dims > MAX_SOBOL_DIMS:
-            raise ValueError(f"Sobol: at most {MAX_SOBOL_DIMS} dimensions; got {dims}")
+            raise ValueError(f"Sobol: parameter 'dims' must be in [1, {MAX_SOBOL_DIMS}]; got {dims}")
         replicates = self.replicates
         glob = _index_words(offset, count)
         index_bits = _SOBOL_INDEX_BITS if glob.wide else _SOBOL_BITS
