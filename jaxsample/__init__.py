@@ -29,9 +29,9 @@ from .samplers import GGX, Beckmann, MicrofacetReflection, VisibleNormals
 
 __version__ = "0.1.0"
 
-# The checks and their geometry load on first use (`js.testing`, `js.domains`), so that a program
-# that only samples and estimates never imports them.
-_ON_FIRST_USE = ("domains", "testing")
+# The checks, their geometry and the adapters load on first use (`js.testing`, `js.domains`,
+# `js.adapters`), so that a program that only samples and estimates never imports them.
+_ON_FIRST_USE = ("adapters", "domains", "testing")
 
 
 def __getattr__(name):
@@ -68,4 +68,5 @@ __all__ = [
     "expectation", "estimate_grad", "expectation_grad",
     # modules
     "samplers", "estimators", "domains", "edges", "numerics", "quadrature", "scene", "testing", "uniforms",
+    "adapters",
 ]

@@ -52,7 +52,7 @@ import jax
 import jax.numpy as jnp
 
 from .._core.entry import compiled_entry
-from ..samplers.base import checked
+from ..samplers.base import check_uniforms, checked
 from .._core.params import check_choice, default_float_dtype, resolve_float_dtype
 from .engine import run_stream
 from .integrand import IntegrandLayout, integrand_layout
@@ -222,6 +222,7 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
         if gradient != "score":
             raise ValueError("expectation: parameter 'baseline' applies to gradient='score' only")
     sampler = checked(sampler)  # the invalid-parameter rule, once, outside the loop
+    check_uniforms(sampler, uniforms, "expectation")
     dims = uniform_dims(sampler, gradient) + boundary_dims(g)
     if leave_one_out and boundary_dims(g):
         raise ValueError("expectation: baseline='leave_one_out' does not add the boundary terms of an integrand "

@@ -18,7 +18,7 @@ from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.params import check_choice, resolve_float_dtype
-from ..samplers.base import check_unbatched, checked
+from ..samplers.base import check_unbatched, check_uniforms, checked
 from ..uniforms import as_key
 from .engine import run_stream
 from .integrand import integrand_layout
@@ -118,6 +118,8 @@ def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequen
     if len(samplers) != len(sizes) or not samplers:
         raise ValueError("estimate_mis: 'samplers' and 'counts' must be non-empty and of equal length")
     _check_samplers_agree(samplers)
+    for s in samplers:
+        check_uniforms(s, uniforms, "estimate_mis")
     refuse_edges("estimate_mis", f)
     samplers = [checked(s) for s in samplers]
     # The counts enter the weights as floats: a Python int beyond 2^31 overflows JAX's weak int32.

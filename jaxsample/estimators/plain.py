@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 
 from .._core.entry import compiled_entry
-from ..samplers.base import checked
+from ..samplers.base import check_uniforms, checked
 from .._core.numerics import safe_div
 from .._core.params import check_choice, default_float_dtype, resolve_float_dtype
 from .engine import run_stream
@@ -152,6 +152,7 @@ def estimate(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n: in
                                                      chunk_size=chunk_size, dtype=dtype),
                           sampler, key, "estimate")
     sampler = checked(sampler)  # the invalid-parameter rule, once, outside the loop
+    check_uniforms(sampler, uniforms, "estimate")
     dims = sampler.uniform_dims + boundary_dims(f)
     dtype = resolve_float_dtype("estimate", dtype)
     layout = integrand_layout(f, sampler, dtype, "estimate")

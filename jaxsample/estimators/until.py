@@ -40,7 +40,7 @@ import jax.numpy as jnp
 
 from .._core.counts import check_count
 from .._core.entry import compiled_entry
-from ..samplers.base import check_sampler, checked
+from ..samplers.base import check_sampler, check_uniforms, checked
 from .._core.params import resolve_float_dtype
 from .._core.pytree import Pytree, static_field
 from ..uniforms import Random, Sobol, as_source, seed_from_key
@@ -166,6 +166,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
                                                            min_n=min_n, uniforms=uniforms, mode=mode, mesh=mesh,
                                                            chunk_size=chunk_size, dtype=dtype),
                           sampler, key, owner)
+    check_uniforms(sampler, uniforms, owner)
     source = as_source(uniforms)
     if not isinstance(source, (Random, Sobol)):
         raise ValueError("estimate_until: parameter 'uniforms' must be 'random' or 'sobol' (stratified "

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 
 from .._core.entry import compiled_entry
 from .._core.counts import check_count
-from ..samplers.base import check_unbatched, checked
+from ..samplers.base import check_unbatched, check_uniforms, checked
 from .._core.params import default_float_dtype, resolve_float_dtype
 from .engine import run_stream, stderr_floor
 from .integrand import integrand_layout, require_real_scalar
@@ -45,6 +45,7 @@ def _paired_moments(f, h, sampler, key, n, mode, uniforms, chunk_size, dtype, me
     check_mode(owner, mode)
     check_unbatched(sampler, owner)
     sampler = checked(sampler)
+    check_uniforms(sampler, uniforms, owner)
     dtype = resolve_float_dtype(owner, dtype)
     layout = integrand_layout(f, sampler, dtype, owner)
     require_real_scalar(integrand_layout(h, sampler, dtype, owner), owner, h_name, why)
@@ -112,6 +113,7 @@ def estimate_antithetic(f: Callable, sampler, key: jax.Array, n: int, *, mode: s
     check_mode("estimate_antithetic", mode)
     check_unbatched(sampler, "estimate_antithetic")
     sampler = checked(sampler)
+    check_uniforms(sampler, uniforms, "estimate_antithetic", antithetic=True)
     n = check_count("estimate_antithetic", "n", n, minimum=2)
     if n % 2:
         raise ValueError(f"estimate_antithetic: parameter 'n' must be even (n/2 antithetic pairs); got {n}")

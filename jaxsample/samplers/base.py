@@ -177,6 +177,10 @@ class Sampler(Pytree):
     # round-trip checks compare them modulo 1.
     periodic_dims: ClassVar[tuple[int, ...]] = ()
     batchable: ClassVar[bool] = True
+    # Whether `warp` is a deterministic map of its uniforms (every library sampler). A sampler that
+    # only uses its uniforms to make a key and draws with it (`jaxsample.adapters.from_distribution`)
+    # sets False: antithetic pairs, stratified and QMC points are then refused (`check_uniforms`).
+    transports_uniforms: ClassVar[bool] = True
 
     def _parameters_valid(self):
         """A boolean (scalar) array: whether the parameters are in range; None if always valid.
@@ -258,6 +262,14 @@ class Sampler(Pytree):
         """(samples, their densities); the density is the one `pdf` states, computed alongside."""
         return draw(self, *key_and_shape(key, sample_shape, seed, shape, "sample_with_pdf"), dtype,
                     "warp_with_pdf")
+
+    def sample_and_log_prob(self, key=None, sample_shape=(), dtype=None, *, seed=None, shape=None):
+        """(samples, their log densities), the pair distrax and TFP name `sample_and_log_prob`: the
+        samples of `sample` for the same key and the log of the density `sample_with_pdf` computes
+        alongside them (from u where the class does so), -inf where that density is 0."""
+        x, density = draw(self, *key_and_shape(key, sample_shape, seed, shape, "sample_and_log_prob"), dtype,
+                          "warp_with_pdf")
+        return x, safe_log(density)
 
 
 
@@ -385,6 +397,28 @@ def check_sampler(owner: str, name: str, value) -> None:
     if not isinstance(value, Sampler):
         raise TypeError(f"{owner}: parameter '{name}' must be a jaxsample.Sampler instance; "
                         f"got {type(value).__name__} {value!r}")
+
+
+def check_uniforms(sampler, uniforms, owner: str, *, antithetic: bool = False) -> None:
+    """Raise where the estimator relies on the structure of the uniforms (stratified or QMC points;
+    with `antithetic`, the pair u, 1 - u) and a sampler in `sampler` does not warp them but draws
+    from a key made of them (`transports_uniforms` False: a distribution of NumPyro, distrax or TFP
+    through `jaxsample.adapters.from_distribution`). There the points' structure is lost in the key
+    hash: the estimate would stay unbiased but gain nothing, so the caller is told instead."""
+    from ..uniforms import as_source
+
+    keyed = [type(s).__name__ for s in _samplers_in(sampler) if not s.transports_uniforms]
+    if not keyed:
+        return
+    if antithetic:
+        raise ValueError(f"{owner}: needs a sampler whose warp maps u and 1 - u to paired points; {keyed[0]} draws "
+                         "from a key (jaxsample.adapters.from_distribution), so antithetic pairs are unrelated: "
+                         "use estimate")
+    source = as_source(uniforms)
+    if source.name != "random":
+        raise ValueError(f"{owner}: parameter 'uniforms' must be 'random' for {keyed[0]}, which draws from a key "
+                         f"(jaxsample.adapters.from_distribution): the structure of {source.name!r} points does "
+                         "not survive the key hash; got " + repr(uniforms))
 
 
 def check_unbatched(sampler, owner: str) -> None:
