@@ -158,10 +158,12 @@ def _summary(cls) -> str:
 
 
 def _built_from_samplers(cls) -> str | None:
-    """The constructor argument that holds other samplers (`base`, `components`, ...), if any."""
+    """The constructor argument that holds the samplers whose measure this one takes (`base`,
+    `proposal`, `components`), if any. A microfacet `distribution` is not one: the normals it
+    shapes are always directions, over solid angle."""
     for name, argument in inspect.signature(cls).parameters.items():
         annotation = str(argument.annotation)
-        if "Sampler" in annotation or "Distribution" in annotation or name in ("components",):
+        if "Sampler" in annotation or name in ("components",):
             return name
     return None
 
@@ -202,12 +204,15 @@ def samplers_table() -> str:
             if argument in declared:
                 text = f"`{argument}` ∈ {_range_text(declared[argument])}"
             elif argument == "method" or info.annotation in ("str", str):
-                seen = sorted({str(getattr(s, argument)) for s in built if hasattr(s, argument)})
-                text = f"`{argument}`: " + " / ".join(f"`{v}`" for v in seen)
+                seen = sorted({str(getattr(s, argument)) for s in built if hasattr(s, argument)},
+                              key=lambda v: v != info.default)  # the default first
+                cells.append(f"`{argument}`: " + " / ".join(
+                    f"`{v}`" + (" (default)" if v == info.default else "") for v in seen))
+                continue
             else:
                 text = f"`{argument}`"
             if info.default is not inspect.Parameter.empty and info.default is not None:
-                text += f" (default `{info.default!r}`)"
+                text += f" (default {info.default!r})"
             cells.append(text)
         # Declared parameters the constructor does not take by that name (UniformCone's stable form).
         for argument, spec in declared.items():

@@ -27,8 +27,8 @@ keys = jax.random.split(jax.random.key(0), len(samplers))
 for index, ((name, sampler), key) in enumerate(zip(samplers.items(), keys), 1):
     x, p = sampler.sample_with_pdf(key, (1500,))
     x, p = np.asarray(x), np.asarray(p)
-    print(f"{name:36s} |x| in [{np.linalg.norm(x, axis=1).min():.6f}, {np.linalg.norm(x, axis=1).max():.6f}], "
-          f"mean z {x[:, 2].mean():+.3f}, pdf in [{p.min():.3g}, {p.max():.3g}]")
+    unit_error = np.abs(np.linalg.norm(x, axis=1) - 1.0).max()
+    print(f"{name:35s} max ||x| - 1| {unit_error:.1e}  mean z {x[:, 2].mean():+.3f}  pdf {p.min():.3g} to {p.max():.3g}")
     axes = fig.add_subplot(2, 5, index, projection="3d")
     axes.scatter(x[:, 0], x[:, 1], x[:, 2], c=np.log(p), s=1.5, cmap="viridis", depthshade=False)
     axes.set_title(name, fontsize=8)
