@@ -276,7 +276,7 @@ SourceLike = Union[str, Source]
 
 
 def as_source(uniforms: SourceLike) -> Source:
-    """"random" | "stratified" | "sobol" | "lattice" (default settings) or a `Source` instance."""
+    """"random" | "stratified" | "sobol" | "lattice" | "halton" (default settings) or a `Source` instance."""
     if isinstance(uniforms, Source):
         return uniforms
     if uniforms == "random":
@@ -289,7 +289,10 @@ def as_source(uniforms: SourceLike) -> Source:
     if uniforms == "lattice":
         from .lattice import Lattice
         return Lattice()
-    raise ValueError(f"uniforms: must be 'random', 'stratified', 'sobol', 'lattice' or a Source; "
+    if uniforms == "halton":
+        from .halton import Halton
+        return Halton()
+    raise ValueError(f"uniforms: must be 'random', 'stratified', 'sobol', 'lattice', 'halton' or a Source; "
                      f"got {uniforms!r}")
 
 

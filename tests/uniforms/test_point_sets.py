@@ -127,11 +127,53 @@ def test_lattice_prefixes_are_lattices_in_every_replicate():
 
 
 # ------------------------------------------------------------------------------------------------
+# Halton
+# ------------------------------------------------------------------------------------------------
+
+def radical_inverse_word(i, b):
+    """floor(phi_b(i) 2^32) with exact rationals (Python integers)."""
+    from fractions import Fraction
+    v, scale = Fraction(0), Fraction(1, b)
+    while i:
+        i, d = divmod(i, b)
+        v += d * scale
+        scale /= b
+    return int(v * 2 ** 32)
+
+
+def test_unscrambled_halton_points_are_the_radical_inverses():
+    dims = 10
+    assert list(U.halton_primes(dims)) == [2, 3, 5, 7, 11, 13, 17, 19, 23, 29]
+    indices = list(range(40)) + [12345, 999983, (1 << 32) - 1]
+    got = np.asarray(U.halton_points(jnp.asarray(indices, jnp.uint32), dims)).astype(np.int64)
+    for row, i in zip(got, indices):
+        expected = [radical_inverse_word(i, int(b)) for b in U.halton_primes(dims)]
+        # float64 Horner: within one unit of the 32-bit fraction (exact in base 2).
+        assert row[0] == expected[0] and np.abs(row - np.array(expected)).max() <= 1, i
+
+
+@pytest.mark.parametrize("scramble", ["permutation", "owen"])
+def test_scrambled_halton_keeps_the_digit_stratification(scramble):
+    """A digit scramble maps the b^k points of each run [c b^k, (c + 1) b^k) of one replicate onto
+    one point per b-adic interval of length b^-k in each coordinate (deterministic)."""
+    source = U.Halton(replicates=2, scramble=scramble)
+    points = np.asarray(U.uniform_block(source, next(KEYS), 0, 2 * 2 * 243, 5))
+    for r in range(2):
+        rep = points[r::2]
+        for j, b in enumerate(U.halton_primes(5)):
+            k = int(math.log(243) // math.log(int(b)))
+            n = int(b) ** k
+            assert np.bincount((rep[:n, j] * n).astype(int), minlength=n).max() == 1, (j, b)
+
+
+# ------------------------------------------------------------------------------------------------
 # Every source
 # ------------------------------------------------------------------------------------------------
 
 SOURCES = {
     "lattice": lambda r: U.Lattice(replicates=r),
+    "halton": lambda r: U.Halton(replicates=r),
+    "halton-owen": lambda r: U.Halton(replicates=r, scramble="owen"),
 }
 
 
@@ -221,6 +263,9 @@ def test_estimates_are_unbiased_over_keys(name):
 SLOPES = [
     ("lattice", 2, "product", -1.6, (64, 4096)),   # tent lattice, smooth: about N^-2
     ("lattice", 4, "product", -1.3, (64, 4096)),
+    ("halton", 2, "product", -0.8, (64, 4096)),    # scrambled Halton: about N^-1
+    ("halton", 4, "product", -0.7, (64, 4096)),
+    ("halton-owen", 2, "product", -0.8, (64, 4096)),
 ]
 
 
@@ -273,6 +318,11 @@ def test_estimators_stream_the_source_under_jit_and_vmap(name):
 
 def test_registered_names_and_invalid_parameters():
     assert U.as_source("lattice") == U.Lattice()
+    assert U.as_source("halton") == U.Halton() and U.Halton(scramble="owen") != U.Halton()
+    with pytest.raises(ValueError, match="scramble"):
+        U.Halton(scramble="random")
+    with pytest.raises(ValueError, match=r"dims.*\[1, 1024\]"):
+        U.Halton().block(U.seed_from_key(next(KEYS)), 0, 16, 1025)
     with pytest.raises(ValueError, match="replicates"):
         U.Lattice(replicates=1)
     with pytest.raises(ValueError, match="tent"):
