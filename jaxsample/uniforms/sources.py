@@ -276,7 +276,7 @@ SourceLike = Union[str, Source]
 
 
 def as_source(uniforms: SourceLike) -> Source:
-    """"random" | "stratified" | "sobol" | "lattice" | "halton" (default settings) or a `Source` instance."""
+    """"random" | "stratified" | "sobol" | "lattice" | "halton" | "lhs" (default settings) or a `Source` instance."""
     if isinstance(uniforms, Source):
         return uniforms
     if uniforms == "random":
@@ -292,7 +292,11 @@ def as_source(uniforms: SourceLike) -> Source:
     if uniforms == "halton":
         from .halton import Halton
         return Halton()
-    raise ValueError(f"uniforms: must be 'random', 'stratified', 'sobol', 'lattice', 'halton' or a Source; "
+    if uniforms == "lhs":
+        from .lhs import LatinHypercube
+        return LatinHypercube()
+    raise ValueError(f"uniforms: must be 'random', 'stratified', 'sobol', 'lattice', 'halton', 'lhs' or a "
+                     f"Source; "
                      f"got {uniforms!r}")
 
 

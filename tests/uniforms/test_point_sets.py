@@ -167,6 +167,44 @@ def test_scrambled_halton_keeps_the_digit_stratification(scramble):
 
 
 # ------------------------------------------------------------------------------------------------
+# Latin hypercube
+# ------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("m", [1000, 1024])
+def test_latin_hypercube_has_one_point_per_stratum_in_every_coordinate(m):
+    """Deterministic: each of 3 replicates has exactly one point in each of m strata of each of 6
+    coordinates (float64 points; m = 1000 walks cycles, m = 1024 does not)."""
+    points = float64_points(U.LatinHypercube(replicates=3), next(KEYS), 3 * m, 6)
+    for r in range(3):
+        for j in range(6):
+            assert np.bincount((points[r::3, j] * m).astype(int), minlength=m).max() == 1, (r, j)
+    assert not np.array_equal(points[0::3, 0], points[1::3, 0])
+
+
+def test_stratum_permutation_is_a_bijection_for_every_size():
+    keys = [(jnp.uint32(0x1234567), jnp.uint32(0x89ABCDEF)), (jnp.uint32(77), jnp.uint32(0xDEADBEEF)),
+            (jnp.uint32(0xC0FFEE), jnp.uint32(12345))]
+    for m in (1, 2, 3, 5, 17, 100, 129, 4096):
+        got = np.asarray(U.lhs.stratum_permutation(jnp.arange(m, dtype=jnp.uint32), keys, m))
+        assert sorted(got.tolist()) == list(range(m)), m
+
+
+@pytest.mark.parametrize("integrand,low,high", [("additive", -1.9, -1.2), ("product", -0.7, -0.35)])
+def test_latin_hypercube_rates(integrand, low, high):
+    """RMSE over 32 replicates at m = 64 .. 4096 per replicate (separate streams: an LHS prefix is
+    not an LHS), 4 dimensions: additive integrand about m^-1.5, the product about m^-0.5."""
+    f = {"product": smooth_product, "additive": additive}[integrand]
+    ns, rmse = [], []
+    for m in (64, 256, 1024, 4096):
+        points = float64_points(U.LatinHypercube(replicates=32), next(KEYS), 32 * m, 4)
+        means = f(points).reshape(m, 32).mean(axis=0)
+        ns.append(m)
+        rmse.append(np.sqrt(np.mean((means - 1.0) ** 2)))
+    slope = float(np.polyfit(np.log(ns), np.log(rmse), 1)[0])
+    assert low < slope < high, (slope, rmse)
+
+
+# ------------------------------------------------------------------------------------------------
 # Every source
 # ------------------------------------------------------------------------------------------------
 
@@ -174,6 +212,7 @@ SOURCES = {
     "lattice": lambda r: U.Lattice(replicates=r),
     "halton": lambda r: U.Halton(replicates=r),
     "halton-owen": lambda r: U.Halton(replicates=r, scramble="owen"),
+    "lhs": lambda r: U.LatinHypercube(replicates=r),
 }
 
 
@@ -318,6 +357,9 @@ def test_estimators_stream_the_source_under_jit_and_vmap(name):
 
 def test_registered_names_and_invalid_parameters():
     assert U.as_source("lattice") == U.Lattice()
+    assert U.as_source("lhs") == U.LatinHypercube()
+    with pytest.raises(ValueError, match="total"):
+        U.uniform_block(U.LatinHypercube(4), next(KEYS), 0, 8, 2, total=10)
     assert U.as_source("halton") == U.Halton() and U.Halton(scramble="owen") != U.Halton()
     with pytest.raises(ValueError, match="scramble"):
         U.Halton(scramble="random")
