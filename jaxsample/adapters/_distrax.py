@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-import distrax
+from ._quiet import quiet_import
+
+with quiet_import():
+    import distrax
 
 from ..samplers.base import Sampler, check_sampler
 

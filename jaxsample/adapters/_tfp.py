@@ -7,12 +7,17 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
-from tensorflow_probability.substrates import jax as tfp
+
+from ._quiet import quiet_import
+
+with quiet_import():  # TFP loads its modules lazily: the first attribute access imports them
+    from tensorflow_probability.substrates import jax as tfp
+    tfd = tfp.distributions
+    TensorShape = tfp.tf2jax.TensorShape
 
 from ..samplers.base import Sampler, check_sampler
 from ..samplers.discrete import Discrete
 
-tfd = tfp.distributions
 
 
 class SamplerDistribution(tfd.Distribution):
@@ -45,10 +50,10 @@ class SamplerDistribution(tfd.Distribution):
         return {}  # the sampler states its own parameters and their ranges
 
     def _event_shape(self):
-        return tfp.tf2jax.TensorShape(tuple(self._sampler.event_shape))
+        return TensorShape(tuple(self._sampler.event_shape))
 
     def _batch_shape(self):
-        return tfp.tf2jax.TensorShape(tuple(self._sampler.batch_shape))
+        return TensorShape(tuple(self._sampler.batch_shape))
 
     def _event_shape_tensor(self):
         return jnp.array(tuple(self._sampler.event_shape), jnp.int32)
