@@ -186,6 +186,14 @@ def _unflattener(cls):
     return unflatten
 
 
+def register_foreign_base(cls, flatten, unflatten) -> None:
+    """Register as a pytree a class whose base another library owns, so that it cannot be a `Pytree`
+    (the adapters' TFP distribution subclasses `tfp.distributions.Distribution`): `flatten(obj)` ->
+    (children, aux), `unflatten(aux, children)` -> obj. The one exception to the idiom, kept here
+    so that every registration of the package is in this module."""
+    jax.tree_util.register_pytree_node(cls, flatten, unflatten)
+
+
 def mark_checked(obj) -> None:
     """Mark `obj` (a copy the library made, never a user's object) as having had its parameters
     checked; the mark is part of the tree structure, so JAX's rebuilt copies carry it."""

@@ -5,7 +5,6 @@ Imported only when `jaxsample.adapters.to_tfp` is first used.
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 
 from ._quiet import quiet_import
@@ -15,6 +14,7 @@ with quiet_import():  # TFP loads its modules lazily: the first attribute access
     tfd = tfp.distributions
     TensorShape = tfp.tf2jax.TensorShape
 
+from .._core.pytree import register_foreign_base
 from ..samplers.base import Sampler, check_sampler
 from ..samplers.discrete import Discrete
 
@@ -68,7 +68,7 @@ class SamplerDistribution(tfd.Distribution):
         return self._sampler.log_prob(x)
 
 
-jax.tree_util.register_pytree_node(
+register_foreign_base(
     SamplerDistribution,
     lambda d: ((d._sampler,), (d.validate_args, d.allow_nan_stats, d.name)),
     lambda aux, children: SamplerDistribution(children[0], *aux))
