@@ -44,6 +44,28 @@ from .timing import interleaved_medians
 
 FIT_FROM_N = 256
 
+# The kind of each point set other than "random" (`Strategy.kind`). QMC: the low-discrepancy sets,
+# whose error falls faster than n^-1/2 on smooth integrands through the equidistribution of the
+# whole point set in every coordinate (scrambled Sobol' nets, the shifted extensible lattice,
+# scrambled Halton). Stratified: the sets that only put one point in each cell of a partition, so
+# that they remove the variance between cells and no more: jittered sampling (cells of the first
+# two coordinates) and the Latin hypercube (cells of each single coordinate: the additive part of
+# the integrand). The point sets that make each kind are in `POINT_SETS`.
+POINT_SET_KINDS = {"sobol": V.QMC, "lattice": V.QMC, "halton": V.QMC, "stratified": "stratified",
+                   "lhs": "stratified"}
+
+# How a point set's estimates at several n come from one stream (`study_one`): "every" — every
+# prefix of one replicate is a valid estimate (independent points; Halton's scrambled sequence,
+# whose n-point prefix is as good as any n-point Halton set); "pow2" — prefixes of 2^m points are
+# the sets the construction promises (Sobol' (t, m, s)-nets; the extensible base-2 lattice, whose
+# first 2^m points are the full 2^m-point rule) and the study's n are powers of two; "anew" — the
+# points depend on n (jittered cells, Latin hypercube strata of size 1/n), so each n is drawn anew.
+PREFIX = {"random": "every", "halton": "every", "sobol": "pow2", "lattice": "pow2", "stratified": "anew",
+          "lhs": "anew"}
+
+# The sets compared beside each existing Sobol' strategy in the full study (`strategies`).
+EXTRA_SETS = ("lattice", "halton", "lhs")
+
 COS30 = float(np.cos(np.pi / 6))
 CAP_AXIS = np.array([0.5, 0.0, 1.0]) / np.linalg.norm([0.5, 0.0, 1.0])
 
@@ -81,12 +103,11 @@ class Strategy:
     @property
     def kind(self) -> str:
         """plain | importance | MIS | stratified | QMC, from the definition: the point set first
-        (scrambled Sobol' -> QMC, jittered -> stratified), then the estimator (two techniques, or a
-        one-sample mixture -> MIS), then the density (non-uniform -> importance, else plain)."""
-        if self.uniforms == "sobol":
-            return V.QMC
-        if self.uniforms == "stratified":
-            return "stratified"
+        (`POINT_SET_KINDS`: a low-discrepancy set -> QMC, a stratified one -> stratified), then the
+        estimator (two techniques, or a one-sample mixture -> MIS), then the density (non-uniform ->
+        importance, else plain)."""
+        if self.uniforms in POINT_SET_KINDS:
+            return POINT_SET_KINDS[self.uniforms]
         if self.heuristic is not None or isinstance(self.sampler, js.Mixture):
             return "MIS"
         return "importance" if self.importance else "plain"
@@ -235,14 +256,27 @@ def strategies() -> list[Strategy]:
     S += [Strategy("free_flight", "exponential1", js.Exponential(1.0), importance=True, baseline=True),
           Strategy("free_flight", "exponential0.5", js.Exponential(0.5), importance=True),
           Strategy("free_flight", "exponential1+sobol", js.Exponential(1.0), "sobol", importance=True)]
-    return S + scene_strategies()
+    return with_every_point_set(S) + scene_strategies()
+
+
+def with_every_point_set(strategies_: list[Strategy], sets=EXTRA_SETS) -> list[Strategy]:
+    """Each Sobol' strategy followed by the same sampler on each of `sets` ("cosine+sobol" ->
+    "cosine+lattice", ...): every point set meets every integrand that one of them meets."""
+    out = []
+    for s in strategies_:
+        out.append(s)
+        if s.uniforms == "sobol":
+            out += [dataclasses.replace(s, name=s.name.replace("+sobol", f"+{other}"), uniforms=other)
+                    for other in sets]
+    return out
 
 
 def scene_strategies() -> list[Strategy]:
     """The GGX lobes: cosine sampling (the baseline), the reflection of normals from the full D, of
     visible normals, and MIS of visible normals with the quad light's solid-angle sampling (power
-    heuristic). The triangle light: area sampling converted to solid angle (the baseline),
-    solid-angle sampling (Arvo 1995) and its cosine-aware warp (the bilinear cosine weight, PBRT-v4)."""
+    heuristic), and visible normals on every point set. The triangle light: area sampling converted
+    to solid angle (the baseline), solid-angle sampling (Arvo 1995) and its cosine-aware warp (the
+    bilinear cosine weight, PBRT-v4), that warp on every point set."""
     from jaxsample.scene import FullNormalsReflection
     from jaxsample.samplers.spherical_triangle import CosineSphericalTriangle, SphericalTriangle
     S = []
@@ -254,15 +288,18 @@ def scene_strategies() -> list[Strategy]:
               Strategy(name, "full-D", FullNormalsReflection(brdf.distribution, wo), importance=True),
               Strategy(name, "visible", visible, importance=True),
               Strategy(name, "mis-power(visible,light)", (visible, light.sampler(jnp.zeros(3))), heuristic="power",
-                       importance=True)]
+                       importance=True),
+              Strategy(name, "visible+sobol", visible, "sobol", importance=True)]
     for name, distance in TRIANGLE_DISTANCES.items():
         light = _triangle_light(distance)
         a, b, c = (jnp.asarray(v) for v in (light.a, light.b, light.c))
         S += [Strategy(f"triangle_{name}", "area", light.sampler(jnp.zeros(3)), importance=True, baseline=True),
               Strategy(f"triangle_{name}", "solid_angle", SphericalTriangle(a, b, c), importance=True),
               Strategy(f"triangle_{name}", "cosine_solid_angle",
-                       CosineSphericalTriangle(a, b, c, jnp.array([0.0, 0.0, 1.0])), importance=True)]
-    return S
+                       CosineSphericalTriangle(a, b, c, jnp.array([0.0, 0.0, 1.0])), importance=True),
+              Strategy(f"triangle_{name}", "cosine_solid_angle+sobol",
+                       CosineSphericalTriangle(a, b, c, jnp.array([0.0, 0.0, 1.0])), "sobol", importance=True)]
+    return with_every_point_set(S)
 
 
 def _values_fn(strategy: Strategy, f):
@@ -291,18 +328,28 @@ def _values_fn(strategy: Strategy, f):
     return values, d1 + d2
 
 
-def _single_replicate_block(name: str, values, dims: int, count: int):
-    """jit: seed -> Y over `count` points of ONE replicate of the source (one scramble / jitter).
-
-    The library's Sobol' and stratified sources interleave R >= 2 replicates (global index g
-    belongs to replicate g mod R, point g div R); drawing 2 * count points with R = 2 and keeping
-    the even ones gives replicate 0 alone: a single scrambled Sobol' sequence in natural order, or
-    one jittered pattern of `count` points.
-    """
+def _two_replicate_source(name: str):
+    """The library's source `name` with R = 2 replicates (Random: one stream, stride 1)."""
     if name == "random":
-        source, stride = U.Random(), 1
-    else:
-        source, stride = (U.Sobol(replicates=2) if name == "sobol" else U.Stratified(replicates=2)), 2
+        return U.Random(), 1
+    factories = {"sobol": U.Sobol, "stratified": U.Stratified, "lattice": U.Lattice, "halton": U.Halton,
+                 "lhs": U.LatinHypercube}
+    if name not in factories:
+        raise ValueError(f"no single-replicate form of the point set {name!r}; known: random, {', '.join(factories)}")
+    return factories[name](replicates=2), 2
+
+
+def _single_replicate_block(name: str, values, dims: int, count: int):
+    """jit: seed -> Y over `count` points of ONE replicate of the source (one scramble / shift / jitter).
+
+    Every replicated source of the library (Sobol', stratified, lattice, Halton, Latin hypercube)
+    interleaves R >= 2 replicates the same way (global index g belongs to replicate g mod R, as its
+    point g div R; `uniforms/_replicated.py`); drawing 2 * count points with R = 2 and keeping the
+    even ones gives replicate 0 alone: one scrambled Sobol' or Halton sequence, one shifted lattice
+    in radical-inverse order, each in natural order, or one jittered pattern / Latin hypercube of
+    `count` points (those two are sized by `total`, here 2 * count: `count` points per replicate).
+    """
+    source, stride = _two_replicate_source(name)
 
     def run(seed):
         u = source.block(seed, jnp.uint32(0), count * stride, dims, jnp.float32, total=count * stride)
@@ -333,7 +380,7 @@ def study_one(strategy: Strategy, integrand: Integrand, ns: list[int], n_keys: i
     keys = jax.random.split(jax.random.key(seed), n_keys)
     estimates = np.zeros((n_keys, len(ns)))
     sum_var = 0.0
-    if strategy.uniforms in ("random", "sobol"):
+    if PREFIX[strategy.uniforms] != "anew":  # "pow2" sets: the study's n are powers of two (study_sizes)
         block = _single_replicate_block(strategy.uniforms, values, dims, n_max // evaluations_per_value)
         for i, key in enumerate(keys):
             y = np.asarray(block(U.seed_from_key(key)))
@@ -409,8 +456,9 @@ def run_study(quick: bool = True, progress=print, tiny: bool = False) -> list[di
     ns, n_keys, n_time = study_sizes(quick, tiny)
     by_name = {i.name: i for i in all_integrands()}
     all_strategies = strategies()
-    if tiny:  # a smoke test: every integrand, a few strategies, every code path (random, sobol, MIS)
+    if tiny:  # a smoke test: every integrand, a few strategies, every code path (random, sobol, lattice, MIS)
         keep = {("hemi_cos3", "uniform"), ("hemi_cos3", "cosine+sobol"), ("hemi_cos3", "cosine+stratified"),
+                ("hemi_cos3", "cosine+lattice"),
                 ("phong100", "uniform"), ("phong100", "mis-power(cosine,phong80)"), ("cap", "uniform"),
                 ("disk_r2", "concentric"), ("triangle_x2", "uniform"), ("free_flight", "exponential1"),
                 ("triangle_near", "area"), ("triangle_near", "solid_angle")}
