@@ -451,14 +451,16 @@ def study_sizes(quick: bool = True, tiny: bool = False) -> tuple[list[int], int,
     return [2**k for k in range(2, 23, 2)], 32, 2**22
 
 
-def run_study(quick: bool = True, progress=print, tiny: bool = False) -> list[dict]:
-    """Every (integrand, strategy) row, with its verdicts (see `study_sizes` for the sizes)."""
-    ns, n_keys, n_time = study_sizes(quick, tiny)
+def run_study(quick: bool = True, progress=print, tiny: bool = False, sizes=None, integrands=None) -> list[dict]:
+    """Every (integrand, strategy) row, with its verdicts (see `study_sizes` for the sizes; `sizes`,
+    a (ns, keys, n_time) triple, replaces them)."""
+    ns, n_keys, n_time = sizes if sizes is not None else study_sizes(quick, tiny)
     by_name = {i.name: i for i in all_integrands()}
     all_strategies = strategies()
-    if tiny:  # a smoke test: every integrand, a few strategies, every code path (random, sobol, lattice, MIS)
+    if integrands:
+        all_strategies = [s for s in all_strategies if s.integrand in integrands]
+    if tiny:  # a smoke test: every integrand, a few strategies, every code path (random, sobol, MIS)
         keep = {("hemi_cos3", "uniform"), ("hemi_cos3", "cosine+sobol"), ("hemi_cos3", "cosine+stratified"),
-                ("hemi_cos3", "cosine+lattice"),
                 ("phong100", "uniform"), ("phong100", "mis-power(cosine,phong80)"), ("cap", "uniform"),
                 ("disk_r2", "concentric"), ("triangle_x2", "uniform"), ("free_flight", "exponential1"),
                 ("triangle_near", "area"), ("triangle_near", "solid_angle")}
@@ -493,6 +495,33 @@ def verdict_rows(rows: list[dict]) -> list[dict]:
             out.append({"integrand": integrand, "target": float(target), "baseline": baseline,
                         "n_max": group[0]["ns"][-1], "n_keys": group[0]["n_keys"], "times": times, **v})
     return out
+
+
+def headline_picks(rows: list[dict], target: float = 1e-3) -> list[dict]:
+    """Which strategy, and so which point set, the headline names fastest for each integrand at
+    `target` (the first of any tied; "" where none reaches it): records of integrand, strategy,
+    point set ("uniforms") and kind."""
+    sets = {(r["integrand"], r["strategy"]): (r["uniforms"], r["kind"]) for r in rows}
+    out = []
+    for v in verdict_rows(rows):
+        if v["target"] != target:
+            continue
+        name = v["best"][0] if v["best"] else ""
+        point_set, kind = sets.get((v["integrand"], name), ("", ""))
+        out.append({"integrand": v["integrand"], "strategy": name, "uniforms": point_set, "kind": kind,
+                    "tied": v["best"][1:]})
+    return out
+
+
+def picks_markdown(rows: list[dict], target: float = 1e-3) -> str:
+    """One line per integrand: the point set of the headline's fastest strategy at `target`."""
+    out = [f"| integrand | fastest to relative RMSE {target:g} | its point set | kind |", "|---|---|---|---|"]
+    for p in headline_picks(rows, target):
+        who = p["strategy"] or "none reaches it"
+        if p["tied"]:
+            who += f" (tied: {', '.join(p['tied'])})"
+        out.append(f"| {p['integrand']} | {who} | {p['uniforms'] or '—'} | {p['kind'] or '—'} |")
+    return "\n".join(out) + "\n"
 
 
 def _who(names: list[str], kinds: dict[str, str], times: dict[str, V.Time]) -> str:
@@ -589,5 +618,21 @@ def markdown_table(rows: list[dict], verdicts: bool = True) -> str:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--max-log2-n", type=int, default=None,
+                        help="sizes n = 4, 16, ..., 2^this (even), instead of the mode's")
+    parser.add_argument("--keys", type=int, default=None, help="independent keys per strategy")
+    parser.add_argument("--only", default=None, help="comma-separated integrands to study (default: all)")
+    parser.add_argument("--json", default=None, help="also write the rows to this JSON file")
     args = parser.parse_args()
-    print(markdown_table(run_study(quick=args.quick)))
+    ns, n_keys, n_time = study_sizes(quick=args.quick)
+    if args.max_log2_n is not None:
+        ns, n_time = [2**k for k in range(2, args.max_log2_n + 1, 2)], 2**args.max_log2_n
+    study_rows = run_study(sizes=(ns, args.keys or n_keys, n_time), integrands=args.only and args.only.split(","))
+    if args.json:
+        import json
+        with open(args.json, "w") as handle:
+            json.dump(study_rows, handle)
+    print(markdown_table(study_rows))
+    print(headline_markdown(study_rows))
+    print(picks_markdown(study_rows, 1e-3))
+    print(picks_markdown(study_rows, 1e-4))

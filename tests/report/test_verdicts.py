@@ -238,7 +238,8 @@ def test_headline_table_from_synthetic_rows():
 def test_strategy_kind_comes_from_its_definition():
     strategies = C.strategies()
     for s in strategies:
-        expected = ("QMC" if s.uniforms == "sobol" else "stratified" if s.uniforms == "stratified"
+        expected = ("QMC" if s.uniforms in ("sobol", "lattice", "halton")
+                    else "stratified" if s.uniforms in ("stratified", "lhs")
                     else "MIS" if s.heuristic or type(s.sampler).__name__ == "Mixture"
                     else "importance" if s.importance else "plain")
         assert s.kind == expected and s.kind in V.KINDS, s
@@ -246,5 +247,8 @@ def test_strategy_kind_comes_from_its_definition():
     integrands = {s.integrand for s in strategies}
     assert all(sum(s.baseline for s in strategies if s.integrand == i) == 1 for i in integrands)
     assert C.Strategy("x", "y", None, "sobol").kind == "QMC"
+    # every point set of the library appears, with the kind its construction gives it
+    assert {s.uniforms for s in strategies} == {"random", "sobol", "stratified", "lattice", "halton", "lhs"}
+    assert [C.Strategy("x", "y", None, u).kind for u in ("lattice", "halton", "lhs")] == ["QMC", "QMC", "stratified"]
     assert C.Strategy("x", "y", None, importance=True).kind == "importance"
     assert C.Strategy("x", "y", None).kind == "plain"
