@@ -1093,6 +1093,12 @@ MUTATIONS = [
       "digits.append((a * d + c) % jnp.uint64(b))", "digits.append(d)",
       ("tests/uniforms/test_point_sets.py::test_every_point_is_uniform_over_keys",),
       "Halton's digits left unscrambled (only the tail randomized): point 0 sits near 0 for every key"),
+    M("lattice-chunk-term-dropped", "jaxsample/uniforms/lattice.py",
+      "w = jnp.asarray(table[:, j])[:, None] + (_coordinate(first, int(z[j])) + shifts[None, :, j])",
+      "w = jnp.asarray(table[:, j])[:, None] + shifts[None, :, j]",
+      ("tests/uniforms/test_point_sets.py::test_lattice_chunk_fast_path_is_bit_identical_to_the_block",),
+      "the aligned-chunk table path must add the chunk's own part rev32(m0) z; without it every chunk "
+      "repeats the first"),
     M("halton-wrong-base", "jaxsample/uniforms/halton.py",
       "v = (d.astype(jnp.float64) + v) * (1.0 / b)", "v = (d.astype(jnp.float64) + v) * (1.0 / (b + 1))",
       ("tests/uniforms/test_point_sets.py::test_unscrambled_halton_points_are_the_radical_inverses",

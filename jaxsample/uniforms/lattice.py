@@ -54,9 +54,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .index import Index
-from .philox import _u32, bits_to_unit
-from .sobol import _reverse_bits
+from .index import Index, as_index, floordiv
+from .philox import _alignment, _u32, bits_to_unit
+from .sobol import _reverse_bits, _reverse_bits_np
 from .._core.pytree import static_field
 from .sources import Source, _check_replicates
 from ._replicated import (STREAM_LATTICE, Layout, check_dims, check_flag, replicate_words, stack_lanes,
@@ -174,6 +174,20 @@ def _coordinate(point: Index, z) -> jax.Array:
     return w
 
 
+_LOW_TABLES: dict = {}
+
+
+def _low_table(bits: int, dims: int) -> np.ndarray:
+    """(2^bits, dims) uint32 NumPy constant: rev32(j) z_c mod 2^32 for j < 2^bits, the part of a
+    point's fraction that comes from the low `bits` bits of its index (see `Lattice.lanes`)."""
+    key = (bits, dims)
+    if key not in _LOW_TABLES:
+        j = _reverse_bits_np(np.arange(1 << bits, dtype=np.uint32))[:, None].astype(np.uint64)
+        _LOW_TABLES[key] = ((j * lattice_generating_vector(dims)[None, :].astype(np.uint64))
+                            & np.uint64(0xFFFFFFFF)).astype(np.uint32)
+    return _LOW_TABLES[key]
+
+
 def lattice_points(index, dims: int) -> jax.Array:
     """Unshifted lattice points frac(phi_2(i) z) as uint32 fractions (value / 2^32), shape
     index.shape + (dims,); `index` is a uint32 array or an `index.Index` (64-bit indices)."""
@@ -218,7 +232,27 @@ class Lattice(Source):
         """The points as one group of `dims` lanes: (count / R, R) when the window starts at a
         multiple of R and holds a multiple of R points (the estimators' chunks), else (count,)."""
         check_dims("Lattice", dims, MAX_LATTICE_DIMS)
-        layout = Layout(offset, count, self.replicates, aligned)
+        replicates = self.replicates
+        per = count // replicates
+        bits = max(per - 1, 0).bit_length()
+        if count % replicates == 0 and per > 0 and _alignment(aligned) % (replicates << bits) == 0:
+            # An estimator's chunk: each replicate takes points m0 .. m0 + per - 1 with m0 a multiple
+            # of 2^bits >= per, so rev32(m0 + j) = rev32(m0) | rev32(j) with disjoint bits, and the
+            # fraction is (rev32(j) z mod 2^32) + (the chunk's part, m0's, plus the shift): a
+            # constant table read along rows plus one word per (replicate, coordinate), the same
+            # bits as below without a per-point bit reversal or multiply.
+            first = floordiv(as_index(offset, count), replicates)
+            table = _low_table(bits, dims)[:per]
+            shifts = self.shifts(seed, dims)
+            z = lattice_generating_vector(dims)
+            lanes = []
+            for j in range(dims):
+                w = jnp.asarray(table[:, j])[:, None] + (_coordinate(first, int(z[j])) + shifts[None, :, j])
+                if self.tent:
+                    w = tent_bits(w)
+                lanes.append(bits_to_unit(w, dtype))
+            return (tuple(lanes),)
+        layout = Layout(offset, count, replicates, aligned)
         shifts = self.shifts(seed, dims)
         z = lattice_generating_vector(dims)
         lanes = []

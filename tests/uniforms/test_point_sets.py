@@ -371,3 +371,17 @@ def test_registered_names_and_invalid_parameters():
         U.Lattice(tent="yes")
     with pytest.raises(ValueError, match=r"dims.*\[1, 1024\]"):
         U.Lattice().block(U.seed_from_key(next(KEYS)), 0, 16, 1025)
+
+
+@pytest.mark.parametrize("replicates, tent, offset", [(2, True, 2 * 256 * 5), (16, False, 16 * 256 * 3),
+                                                      (4, True, (1 << 34) + 4 * 256 * 7)])
+def test_lattice_chunk_fast_path_is_bit_identical_to_the_block(replicates, tent, offset):
+    # The estimators' aligned chunks take the table path of Lattice.lanes (rev32(m0 + j) split into
+    # disjoint bits); a wrong split or a dropped chunk term would move the points off the lattice.
+    from jaxsample.uniforms.index import as_index
+    source = U.Lattice(replicates, tent=tent)
+    seed = U.seed_from_key(jax.random.key(41 + replicates))
+    count = replicates * 256
+    (fast,) = source.lanes(seed, as_index(offset, count), count, 5, aligned=count)
+    slow = source.block(seed, as_index(offset, count), count, 5)
+    assert np.array_equal(np.stack([np.asarray(lane).reshape(-1) for lane in fast], -1), np.asarray(slow))
