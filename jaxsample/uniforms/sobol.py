@@ -170,3 +170,69 @@ def _sobol_low_table(bits: int, dims: int) -> np.ndarray:
             points ^= np.where((index >> np.uint32(k)) & np.uint32(1), directions[:, k], np.uint32(0))
         _SOBOL_CACHE[key] = _reverse_bits_np(points)
     return _SOBOL_CACHE[key]
+
+
+# ----------------------------------------------------------------------------------------------
+# Linear matrix scrambling (Matoušek 1998) and the padded 2-D Sobol' of each dimension pair
+# ----------------------------------------------------------------------------------------------
+
+# Stream words (third Philox counter word) of these randomizations: tags far from the small
+# stream numbers of `philox` (0 random, 1 jitter, 2 Owen seeds) and from those of `_replicated`,
+# with room below each for the block number w added to it.
+STREAM_LMS = 0x534C4D00          # "SLM": the matrices of Sobol(scramble="lms"), w = 0..8
+STREAM_PADDED = 0x53504100       # "SPA": the per-pair matrices and index shuffles of padding=True
+STREAM_PADDED_SHIFT = 0x53505300  # "SPS": the per-pair seeds or shifts that also depend on the
+                                  # high index word (each run of 2^32 points of a pair its own)
+
+_PASCAL_MASKS = (0x55555555, 0x33333333, 0x0F0F0F0F, 0x00FF00FF, 0x0000FFFF)
+
+
+def triangular_columns(words: jax.Array) -> jax.Array:
+    """(..., 32) random uint32 words -> the 32 columns of a random binary triangular matrix with
+    unit diagonal: column p = 2^p + (w_p mod 2^p), so that input bit p reaches output bit p and,
+    with random coefficients, the bits below it, never those above.
+
+    Read on a 32-bit fraction (bit 31 the first digit), this is Matoušek's linear matrix scramble
+    (Matoušek 1998, "On the L2-discrepancy for anchored boxes", J. Complexity 14; Owen 2003,
+    "Variance with alternative scramblings of digital nets", section 2): digit k of the output is
+    digit k of the input plus a random linear combination of digits 1..k-1 (lower triangular in
+    digit order, nonsingular in base 2 because the diagonal is 1). Read on an index (bit 0 the
+    least significant), the same form is a random linear bijection under which output bit k
+    depends only on input bits >= k: it maps each aligned block [c 2^m, (c + 1) 2^m) of indices
+    onto an aligned block of the same size."""
+    position = jnp.arange(32, dtype=jnp.uint32)
+    one = _u32(1)
+    return (one << position) | (words & ((one << position) - one))
+
+
+def apply_columns(x: jax.Array, columns: jax.Array) -> jax.Array:
+    """The GF(2) matrix-vector product: the xor of columns[..., p] over the set bits p of x.
+
+    `columns` (..., 32) broadcasts against x.shape + (32,); the 32 terms are formed as one array
+    and xor-reduced in one operation, so a batch of products (every column of a matrix, say)
+    costs one traced step, not 32 per product. For the small per-(replicate, dimension) arrays
+    it is meant for; per point, the callers loop over the index bits instead."""
+    position = jnp.arange(32, dtype=jnp.uint32)
+    bit = (x[..., None] >> position) & _u32(1)
+    terms = (_u32(0) - bit) & columns
+    return jax.lax.reduce(terms, _u32(0), jax.lax.bitwise_xor, (terms.ndim - 1,))
+
+
+def pascal_superset_xor(y: jax.Array) -> jax.Array:
+    """z_e = xor of y_k over the k whose bits contain those of e (Lucas: C(k, e) odd), in 5 steps.
+
+    Sobol' dimension 2 has the primitive polynomial x + 1, so m_k are the rows of Pascal's triangle
+    mod 2 and its 32-bit point for index y is reverse_bits(pascal_superset_xor(y)): digit e + 1 of
+    the fraction is the xor of the index bits k with C(k, e) odd. This gives dims 1 and 2 of the
+    padded pairs (dimension 1 is reverse_bits(y)) without a loop over the index bits."""
+    for step, mask in enumerate(_PASCAL_MASKS):
+        y = y ^ ((y >> _u32(1 << step)) & _u32(mask))
+    return y
+
+
+def scrambled_generator_columns(columns: jax.Array, directions: jax.Array) -> jax.Array:
+    """The columns L V_k of the scrambled generator matrix, for scramble columns (..., 32) and
+    32-bit direction numbers V (..., K): LMS acts on a digital net by left-multiplying its
+    generator matrices, so the scrambled point of index i is the xor of L V_k over the bits k of i
+    (exactly L applied to the unscrambled point: the two are equal bit for bit)."""
+    return apply_columns(directions, columns[..., None, :])

@@ -45,8 +45,10 @@ from .._core.pytree import Pytree, static_field
 from .index import Index, as_index, divmod_index, floordiv, index_range, index_value, less_than
 from .philox import (_STREAM_JITTER, _alignment, _STREAM_RANDOM, _STREAM_SCRAMBLE, _index_words, _philox_words,
                      _samples_per_block, _u32, bits_to_unit, philox4x32, random_bits, seed_from_key)
-from .sobol import (_SOBOL_BITS, _SOBOL_INDEX_BITS, MAX_SOBOL_DIMS, _reverse_bits, _scramble_reversed,
-                    _sobol_low_table, owen_scramble, sobol_points)
+from .sobol import (_SOBOL_BITS, _SOBOL_INDEX_BITS, MAX_SOBOL_DIMS, STREAM_LMS, STREAM_PADDED,
+                    STREAM_PADDED_SHIFT, _reverse_bits, _scramble_reversed, _sobol_low_table, apply_columns,
+                    owen_scramble, pascal_superset_xor, scrambled_generator_columns, sobol_direction_numbers,
+                    sobol_points, triangular_columns)
 
 
 class Source(Pytree):
@@ -199,15 +201,52 @@ class Stratified(Source):
 
 
 class Sobol(Source):
-    """Owen-scrambled Sobol' points in R independent replicates (default 16), up to 1024 dims.
+    """Scrambled Sobol' points in R independent replicates (default 16): up to 1024 dims, or any
+    number with `padding=True`.
 
     Replicate r (global indices g with g mod R = r) is the Sobol' sequence in natural order,
-    point g div R, with each coordinate j passed through `owen_scramble` under its own 32-bit seed
-    (Philox of (r, j) under the user's key). Each replicate is a randomized (0, m, s)-net for every
-    power-of-two prefix, each point is uniform, so the estimate is unbiased, and the replicates
-    are independent, so their spread gives an honest standard error. Convergence is best when
+    point g div R (Joe & Kuo's new-joe-kuo-6.21201 direction numbers), randomized by one of:
+
+    - `scramble="owen"` (the default): each coordinate j passed through `owen_scramble` under its
+      own 32-bit seed (Philox of (r, j) under the user's key): a hash-based nested uniform
+      scramble (Burley 2020).
+    - `scramble="lms"`: each coordinate j multiplied by its own random lower-triangular binary
+      matrix with unit diagonal and xored with a random digital shift, x -> L x + e over GF(2)
+      (the linear matrix scramble of Matoušek 1998 plus a digital shift; see
+      `sobol.triangular_columns`). L and e come from Philox of (r, j, w) under the key. Since L
+      is linear, L P(i) is the xor of the scrambled direction numbers L V_k over the bits of i, so
+      a point costs about what the unscrambled one does. LMS keeps the t of every projection
+      exactly (the scrambled generator matrices have the same ranks), and with the shift every
+      point is uniform; its variance is that of the Owen scramble for the integrands whose
+      variance involves pairs of points only through their first common digits (Owen 2003,
+      "Variance with alternative scramblings of digital nets", ACM TOMACS 13), and it costs no
+      hash per point.
+
+    Each replicate is a randomized (t, m, s)-net for every power-of-two prefix (t = 0 in
+    dimensions 1-2), each point is uniform, so the estimate is unbiased, and the replicates are
+    independent, so their spread gives an honest standard error. Convergence is best when
     total / R is a power of two. Only 32 bits of the scrambled fraction exist; float32 keeps 23
     (midpoint of the cell, as for `Random`).
+
+    `padding=True` pads with 2-D Sobol' instead, as renderers do (PBRT-v4's PaddedSobolSampler;
+    Burley 2020, section 4): coordinates 2k and 2k + 1 are Sobol' dimensions 1 and 2 (a (0, 2)-
+    sequence) at a shuffled index pi_(r,k)(i), each coordinate scrambled on its own, with the
+    shuffle and the scrambles independent for every pair k and replicate r; an odd last
+    coordinate is the pair's first. Any number of dimensions works, and each pair's power-of-two
+    prefixes are (0, m, 2)-nets, because the shuffle maps each aligned run [c 2^m, (c + 1) 2^m)
+    of indices onto an aligned run, and every such run of a (0, 2)-sequence is a (0, m, 2)-net.
+    Across pairs there is no net structure (the shuffle decorrelates them): the price of padding
+    next to the full Sobol' net, which also stratifies higher-dimensional projections. With
+    "owen" the shuffle is Burley's nested uniform shuffle, `owen_scramble` applied to the index
+    (bit k of the index flipped by a hash of the bits above it, under a seed of its own); with
+    "lms" it is the linear analogue, i -> M i with M a random binary upper-triangular matrix
+    with unit diagonal (bit k of the result depends on the bits >= k of i), so each pair is a
+    randomly scrambled digital net with generator matrices L_a J M and L_b P M (J the bit
+    reversal of dimension 1, P Pascal's matrix of dimension 2). The shuffle acts on the low 32
+    bits of the point index; the seeds (owen) or the digital shifts (lms) also depend on its
+    high word, so past 2^32 points per replicate each run of 2^32 points of a pair (in 32-bit
+    fractions, a complete (0, 32, 2)-net: one point per 2^-32 elementary box) is independently
+    randomized.
 
     Point indices have 64 bits (`sobol.sobol_direction_numbers`: Joe & Kuo's recurrence carried to
     64 index bits), so a stream may have up to 2^64 points; the first 2^32 of each replicate are
@@ -217,9 +256,34 @@ class Sobol(Source):
     """
 
     name: ClassVar[str] = "sobol"
+    scramble: str = static_field(default="owen")
+    padding: bool = static_field(default=False)
 
-    def __init__(self, replicates: int = 16):
+    SCRAMBLES: ClassVar[tuple[str, ...]] = ("owen", "lms")
+
+    def __init__(self, replicates: int = 16, scramble: str = "owen", padding: bool = False):
         self.replicates = _check_replicates("Sobol", replicates)
+        if not isinstance(scramble, str) or scramble not in self.SCRAMBLES:
+            raise ValueError(f"Sobol: parameter 'scramble' must be one of {self.SCRAMBLES}; got {scramble!r}")
+        self.scramble = scramble
+        if not isinstance(padding, (bool, np.bool_)):
+            raise ValueError(f"Sobol: parameter 'padding' must be True or False; got {padding!r}")
+        self.padding = bool(padding)
+
+    def __repr__(self):
+        return f"Sobol(replicates={self.replicates}, scramble={self.scramble!r}, padding={self.padding})"
+
+    def __eq__(self, other):
+        return (type(self) is type(other) and self.replicates == other.replicates
+                and self.scramble == other.scramble and self.padding == other.padding)
+
+    def __hash__(self):
+        return hash(("Sobol", self.replicates, self.scramble, self.padding))
+
+    def _check_dims(self, dims: int) -> None:
+        if not self.padding and dims > MAX_SOBOL_DIMS:
+            raise ValueError(f"Sobol: parameter 'dims' must be in [1, {MAX_SOBOL_DIMS}]; got {dims} "
+                             "(Sobol(padding=True) takes any number)")
 
     def scramble_seeds(self, seed, dims: int) -> jax.Array:
         replicate = jnp.arange(self.replicates, dtype=jnp.uint32)[:, None]
@@ -230,8 +294,11 @@ class Sobol(Source):
         return words[0]  # (R, dims)
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
-        if dims > MAX_SOBOL_DIMS:
-            raise ValueError(f"Sobol: parameter 'dims' must be in [1, {MAX_SOBOL_DIMS}]; got {dims}")
+        self._check_dims(dims)
+        if self.padding:
+            return bits_to_unit(self._padded_block(seed, offset, count, dims), dtype)
+        if self.scramble == "lms":
+            return bits_to_unit(self._lms_block(seed, offset, count, dims, total), dtype)
         replicates = self.replicates
         glob = _index_words(offset, count)
         index_bits = _SOBOL_INDEX_BITS if glob.wide else _SOBOL_BITS
@@ -253,13 +320,16 @@ class Sobol(Source):
         Laid out as (j, replicate), the table is read along rows and the seeds along columns:
         no gather and no per-point loop over index bits. The points are bit-identical to `block`.
         """
+        self._check_dims(dims)
         replicates = self.replicates
         per = count // replicates
         bits = max(per - 1, 0).bit_length()
-        if (dims > MAX_SOBOL_DIMS or count % replicates or per == 0
-                or _alignment(aligned) % (replicates << bits)):
+        if count % replicates or per == 0 or _alignment(aligned) % (replicates << bits):
             return super().lanes(seed, offset, count, dims, dtype, total, aligned)
         first = floordiv(as_index(offset, count), replicates)
+        if self.padding or self.scramble == "lms":
+            fast = self._padded_lanes if self.padding else self._lms_lanes
+            return (tuple(bits_to_unit(c, dtype) for c in fast(seed, first, per, bits, dims)),)
         high = _reverse_bits(sobol_points(first, dims))  # (dims,)
         table = _sobol_low_table(bits, dims)[:per]        # (per, dims), NumPy constant
         seeds = self.scramble_seeds(seed, dims)           # (R, dims)
@@ -271,6 +341,142 @@ class Sobol(Source):
                                                       seeds[None, :, j]), dtype)
                       for j in range(dims)),)
 
+
+    # ---- scramble="lms": linear matrix scrambling plus a digital shift -------------------------
+
+    def lms_matrices(self, seed, dims: int) -> tuple[jax.Array, jax.Array]:
+        """(columns (R, dims, 32), shifts (R, dims)): the lower-triangular matrix L of each
+        replicate and dimension as its 32 columns (`sobol.triangular_columns`) and its digital
+        shift e, from the 36 words of Philox (r, j, STREAM_LMS + w, 0), w = 0..8, under the seed:
+        every (replicate, dimension) reads counters of its own."""
+        replicate = jnp.arange(self.replicates, dtype=jnp.uint32)[:, None]
+        dim = jnp.arange(dims, dtype=jnp.uint32)[None, :]
+        words = [w for block in range(9) for w in _grid_words(seed, replicate, dim, STREAM_LMS + block)]
+        return triangular_columns(jnp.stack(words[:32], axis=-1)), words[32]
+
+    def _lms_block(self, seed, offset, count, dims, total):
+        replicates = self.replicates
+        glob = _index_words(offset, count)
+        index_bits = _SOBOL_INDEX_BITS if glob.wide else _SOBOL_BITS
+        if total is not None:
+            index_bits = min(index_bits, max(1, int(-(-total // replicates) - 1).bit_length()))
+        point, replicate = divmod_index(glob, replicates)
+        replicate = replicate.astype(jnp.int32)
+        columns, shifts = self.lms_matrices(seed, dims)
+        # L P(i) + e = e xor (the xor of L V_k over the set bits k of i): the scrambled generator
+        # matrix's columns (R, dims, index_bits), then one gathered (count, dims) slice per index
+        # bit, as `sobol_points` does with V itself (the same bits as L applied to P(i)).
+        directions = jnp.asarray(sobol_direction_numbers(dims, index_bits))[None]
+        generator = scrambled_generator_columns(columns, directions)
+        result = shifts[replicate]
+        words = [(point.lo, 0)] + ([(point.hi, 32)] if point.wide else [])
+        for word, first in words:
+            word = word[:, None]
+            for k in range(first, min(first + 32, index_bits)):
+                bit = (word >> _u32(k - first)) & _u32(1)
+                result = result ^ ((_u32(0) - bit) & generator[:, :, k][replicate])
+        return result
+
+    def _lms_lanes(self, seed, first: Index, per: int, bits: int, dims: int) -> list:
+        """(per, R) lanes of point m0 + j = m0 xor j of every replicate (m0 = `first`, a
+        multiple of 2^bits > j): L P(m0) + e per (replicate, dimension), then the xor of the
+        scrambled direction numbers L V_k over the bits k < bits of j (linearity: the same bits
+        as `_lms_block`)."""
+        columns, shifts = self.lms_matrices(seed, dims)                        # (R, dims, 32), (R, dims)
+        high = apply_columns(sobol_points(first, dims), columns) ^ shifts       # (R, dims)
+        directions = jnp.asarray(sobol_direction_numbers(dims, max(bits, 1)))[None, :, :bits]
+        generator = scrambled_generator_columns(columns, directions)            # (R, dims, bits)
+        return [_xor_over_row_bits(high[None, :, j], generator[None, :, j], per, bits) for j in range(dims)]
+
+    # ---- padding=True: a shuffled, scrambled 2-D Sobol' per dimension pair -----------------------
+
+    def _padded_words(self, seed, replicate, pairs: int, high):
+        """Philox (r, k, STREAM_PADDED_SHIFT, high) per replicate r and pair k: the shuffle and
+        coordinate seeds ("owen", words 0-2) or the two digital shifts ("lms", words 0-1) of the
+        pair's run of 2^32 points whose high index word is `high`."""
+        return _grid_words(seed, replicate, jnp.arange(pairs, dtype=jnp.uint32), STREAM_PADDED_SHIFT, high)
+
+    def padded_matrices(self, seed, pairs: int):
+        """("lms") the columns (R, pairs, 32) of M (the index shuffle), L_a and L_b (the two
+        coordinates' scrambles) of each replicate and pair, from Philox (r, k, STREAM_PADDED + w, 0),
+        w = 0..23."""
+        replicate = jnp.arange(self.replicates, dtype=jnp.uint32)[:, None]
+        pair = jnp.arange(pairs, dtype=jnp.uint32)[None, :]
+        words = [w for block in range(24) for w in _grid_words(seed, replicate, pair, STREAM_PADDED + block)]
+        return tuple(triangular_columns(jnp.stack(words[32 * q: 32 * q + 32], axis=-1)) for q in range(3))
+
+    def _padded_block(self, seed, offset, count, dims):
+        replicates, pairs = self.replicates, -(-dims // 2)
+        point, replicate = divmod_index(_index_words(offset, count), replicates)
+        high = jnp.zeros_like(point.lo) if point.hi is None else point.hi
+        words = self._padded_words(seed, replicate[:, None], pairs, high[:, None])  # 4 x (count, pairs)
+        i = point.lo[:, None]
+        if self.scramble == "owen":
+            first, second = _padded_owen_pair(i, *words[:3])
+        else:
+            shuffle, scramble_a, scramble_b = self.padded_matrices(seed, pairs)
+            replicate = replicate.astype(jnp.int32)
+            gen_a, gen_b = _padded_generator(shuffle, scramble_a, scramble_b, 32)   # (R, pairs, 32)
+            first, second = words[0], words[1]
+            for k in range(32):
+                bit = _u32(0) - ((i >> _u32(k)) & _u32(1))
+                first, second = first ^ (bit & gen_a[:, :, k][replicate]), second ^ (bit & gen_b[:, :, k][replicate])
+        return jnp.stack([first, second], axis=-1).reshape(count, 2 * pairs)[:, :dims]
+
+    def _padded_lanes(self, seed, first: Index, per: int, bits: int, dims: int) -> list:
+        """(per, R) lanes (the chunk lies in one run of 2^32 points: m0 is a multiple of
+        2^bits > j); bit-identical to `_padded_block`."""
+        replicates, pairs = self.replicates, -(-dims // 2)
+        replicate = jnp.arange(replicates, dtype=jnp.uint32)[:, None]
+        high = _u32(0) if first.hi is None else first.hi
+        words = self._padded_words(seed, replicate, pairs, high)                 # 4 x (R, pairs)
+        if self.scramble == "owen":
+            i = first.lo + jnp.arange(per, dtype=jnp.uint32)[:, None]            # (per, 1)
+            lanes = [c for k in range(pairs) for c in _padded_owen_pair(i, *(w[None, :, k] for w in words[:3]))]
+        else:
+            shuffle, scramble_a, scramble_b = self.padded_matrices(seed, pairs)
+            # The pair's point at m0 (the high bits), then the generator columns of the low bits.
+            shuffled = apply_columns(first.lo, shuffle)
+            top = (apply_columns(_reverse_bits(shuffled), scramble_a) ^ words[0],
+                   apply_columns(_reverse_bits(pascal_superset_xor(shuffled)), scramble_b) ^ words[1])
+            low = _padded_generator(shuffle, scramble_a, scramble_b, bits) if bits else (None, None)
+            lanes = [_xor_over_row_bits(top[c][None, :, k], None if low[c] is None else low[c][None, :, k], per, bits)
+                     for k in range(pairs) for c in (0, 1)]
+        return [jnp.broadcast_to(c, (per, replicates)) for c in lanes[:dims]]
+
+
+def _grid_words(seed, replicate, column, stream: int, high=0):
+    """Philox4x32 of the counter (replicate, column, stream, high) under the seed, broadcast
+    over the shapes of replicate, column and high (uint32 arrays)."""
+    replicate, column, high = jnp.broadcast_arrays(_u32(replicate), _u32(column), _u32(high))
+    return philox4x32((replicate, column, jnp.full_like(column, _u32(stream)), high), (seed[..., 0], seed[..., 1]))
+
+
+def _xor_over_row_bits(start, generator, per: int, bits: int) -> jax.Array:
+    """start xor (xor of generator[..., k] over the bits k < bits of the row index j), on
+    (per, R) lanes: the low-index part of a digital net's point, m0 xor j."""
+    row = jnp.arange(per, dtype=jnp.uint32)[:, None]
+    value = jnp.broadcast_to(start, (per,) + start.shape[1:])
+    for k in range(bits):
+        value = value ^ ((_u32(0) - ((row >> _u32(k)) & _u32(1))) & generator[..., k])
+    return value
+
+
+def _padded_owen_pair(index, shuffle_seed, seed_a, seed_b):
+    """Sobol' dimensions 1 and 2 at Burley's nested uniform shuffle of the index, each
+    Owen-scrambled: dimension 1 of index y is reverse_bits(y) and dimension 2 is
+    reverse_bits(pascal_superset_xor(y)), so the scramble's first reversal cancels."""
+    shuffled = owen_scramble(index, shuffle_seed)
+    return _scramble_reversed(shuffled, seed_a), _scramble_reversed(pascal_superset_xor(shuffled), seed_b)
+
+
+def _padded_generator(shuffle, scramble_a, scramble_b, bits: int):
+    """("lms" padding) the generator columns (..., bits) of the pair's two coordinates for index
+    bits k < bits: L_a J M e_k and L_b P M e_k, M e_k being column k of the shuffle M
+    (`triangular_columns`), J the bit reversal (dimension 1), P Pascal's matrix (dimension 2)."""
+    column = shuffle[..., :bits]
+    return (apply_columns(_reverse_bits(column), scramble_a[..., None, :]),
+            apply_columns(_reverse_bits(pascal_superset_xor(column)), scramble_b[..., None, :]))
 
 SourceLike = Union[str, Source]
 
