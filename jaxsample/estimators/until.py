@@ -9,8 +9,9 @@ n_used it stopped at, what `estimate(..., n_used, chunk_size=...)` returns for t
 It runs under `jit` and `vmap` (each batch member stops on its own; under vmap the loop runs until
 all have stopped, the stopped ones unchanged), on a batched sampler (each member stops on its own)
 and over a device mesh (`mesh=`: every step draws one chunk on each device, and the stopping test
-sees all of them). With Sobol' points the test is made only when each replicate holds a power of
-two of points, so every stopping point is a (0, m, s)-net of every replicate.
+sees all of them). With Sobol' (or lattice) points the test is made only when each replicate
+holds a power of two of points, so every stopping point is a (0, m, s)-net (a lattice rule) of
+every replicate; Halton prefixes are tested after every step.
 
 Sequential stopping is a mild bias: the estimate is most likely to stop when its stderr happens
 to be small, so the interval mean ± 1.96 stderr covers the integral slightly less often than 95 %.
@@ -43,7 +44,7 @@ from .._core.entry import compiled_entry
 from ..samplers.base import check_sampler, check_uniforms, checked
 from .._core.params import resolve_float_dtype
 from .._core.pytree import Pytree, static_field
-from ..uniforms import Random, Sobol, as_source, seed_from_key
+from ..uniforms import Halton, Lattice, Random, Sobol, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, offset_at
 from .diagnostics import tail_bins, verdict
 from .engine import (_MAX_STEPS, _check_chunk_size, _chunk, _empty_moments, _merge, combine_devices, finish,
@@ -150,8 +151,9 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
         of R means is itself uncertain: Student's t with R - 1 degrees of freedom), so that the
         95 % interval is as wide as with independent points at that tolerance.
       min_n: stop no earlier than this (default 8 steps; a multiple of `chunk_size` x devices).
-      uniforms: "random" (default) or "sobol" (the test is made at power-of-two points per
-        replicate); "stratified" needs the total count in advance, so it is refused.
+      uniforms: "random" (default), "sobol" or "lattice" (the test is made at power-of-two points
+        per replicate: only there is each replicate a net or a lattice rule), or "halton" (tested
+        after every step); "stratified" and "lhs" need the total count in advance, so they are refused.
       mesh: a `jax.sharding.Mesh`; every step draws the next chunk of the stream on each of its
         devices (step s, device d: chunk s x devices + d), so the points used are the first
         n_used of the stream, as without a mesh.
@@ -168,10 +170,13 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
                           sampler, key, owner)
     check_uniforms(sampler, uniforms, owner)
     source = as_source(uniforms)
-    if not isinstance(source, (Random, Sobol)):
-        raise ValueError("estimate_until: parameter 'uniforms' must be 'random' or 'sobol' (stratified "
-                         "points need the total count in advance)")
+    if not isinstance(source, (Random, Sobol, Lattice, Halton)):
+        raise ValueError("estimate_until: parameter 'uniforms' must be 'random', 'sobol', 'lattice' or 'halton' "
+                         "(stratified and Latin hypercube points need the total count in advance)")
     replicates = source.replicates
+    # Sobol' nets and extensible lattices are whole rules only at powers of two per replicate;
+    # every prefix of a Halton sequence is as good as any other count.
+    powers_of_two = isinstance(source, (Sobol, Lattice))
     devices = 1 if mesh is None else mesh.size
     max_n = check_count(owner, "max_n", max_n, minimum=2, maximum=MAX_INDEX)
     count_dtype = jnp.int32
@@ -223,7 +228,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
     def at_net(steps):
         # Sobol': test only when every replicate holds a power of two of points, steps x per_step:
         # never if per_step is not a power of two, else exactly when the number of steps is one.
-        if replicates == 1:
+        if replicates == 1 or not powers_of_two:
             return jnp.bool_(True)
         if per_step & (per_step - 1):
             return jnp.bool_(False)

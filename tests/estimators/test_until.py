@@ -53,6 +53,33 @@ def test_sobol_stops_at_a_net():
         assert np.all(np.abs(z) < 6)
 
 
+def test_lattice_stops_at_a_lattice_rule_and_halton_after_any_step():
+    """Lattice (16 replicates, 256 points each per chunk) on |ω_x| over the uniform hemisphere (a
+    kink: stops spread over 256 .. 1024 points per replicate): every stop is a power of two per
+    replicate (a whole lattice rule); Halton on cos³ is tested after every step, so some of 16 keys
+    stop off powers of two. Both estimates are within 6 stderr of the exact value (π, π/2)."""
+    sampler = js.CosineHemisphere(method="inversion")
+    kink = (lambda w: jnp.abs(w[0]), js.UniformHemisphere(), np.pi)
+    for uniforms, rtol, seed, (f, s, exact) in (("lattice", 1e-4, 30, kink),
+                                                ("halton", 2e-5, 31, (COS3, sampler, np.pi / 2))):
+        keys = jax.random.split(jax.random.key(seed), 16)
+        r = jax.jit(jax.vmap(lambda k: js.estimate_until(f, s, k, rtol=rtol, max_n=1 << 20,
+                                                         chunk_size=1 << 12, min_n=1 << 12,
+                                                         uniforms=uniforms)))(keys)
+        per_replicate = np.asarray(r.n_used) // 16
+        powers = per_replicate & (per_replicate - 1) == 0
+        assert np.all(np.asarray(r.converged)), (uniforms, per_replicate)
+        if uniforms == "lattice":
+            assert np.all(powers), per_replicate
+        else:
+            assert not np.all(powers), per_replicate
+        assert len(set(per_replicate.tolist())) > 1, per_replicate   # the tolerance, not min_n, decides
+        z = (np.asarray(r.mean, np.float64) - exact) / np.asarray(r.stderr, np.float64)
+        assert np.all(np.abs(z) < 6), (uniforms, z)
+    with pytest.raises(ValueError, match="Latin hypercube"):
+        js.estimate_until(COS3, sampler, jax.random.key(32), rtol=1e-2, max_n=1 << 14, uniforms="lhs")
+
+
 @pytest.mark.parametrize("case", ["cos3-uniform", "cos-phong2-heavy-tail"])
 def test_interval_coverage_despite_sequential_stopping(case):
     """Over 1000 keys at rtol = 1e-2 (min_n = 8 chunks): the 95 % intervals cover the exact value
