@@ -7,6 +7,12 @@ under `jit`, with each source. Prints the median ns/point over `repeats` runs af
 and the ratio to `Random` in the same run (shared 2-core machine: ratios are the figure to read).
 Measured 2026-12-03, n = 2^20: random 3.3, sobol 8.9, lattice 7.4, halton 85, halton-owen 140,
 lhs 14.6 ns/point (ratios 1, 2.7, 2.2, 25, 42, 4.4).
+Measured 2026-12-03 after the lattice table path (b90aad4) and Sobol' LMS / padding (67f6bc3), with
+a CI run sharing both cores (so every ratio is noisy): random 3.4, sobol 10.9, sobol-lms 17.7,
+sobol-padded 10.5, sobol-lms-padded 29.3, lattice 10.0, halton 128, halton-owen 172, lhs 16.1
+ns/point (ratios 1, 3.2, 5.2, 3.1, 8.6, 2.9, 38, 50, 4.7). On a quieter machine the same day
+(an ad hoc script, random first and last): random 2.8-3.2, lattice 6.3 before the table path
+and 5.5 after (1.8x).
 """
 
 from __future__ import annotations
@@ -40,7 +46,9 @@ def main():
     parser.add_argument("--n", type=int, default=1 << 20)
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
-    sources = [("random", U.Random()), ("sobol", U.Sobol()), ("lattice", U.Lattice()),
+    sources = [("random", U.Random()), ("sobol", U.Sobol()), ("sobol-lms", U.Sobol(scramble="lms")),
+               ("sobol-padded", U.Sobol(padding=True)), ("sobol-lms-padded", U.Sobol(scramble="lms", padding=True)),
+               ("lattice", U.Lattice()),
                ("halton", U.Halton()), ("halton-owen", U.Halton(scramble="owen")), ("lhs", U.LatinHypercube())]
     base = None
     print("| source | ns/point (2 dims, median) | ratio to random |\n|---|---|---|")
