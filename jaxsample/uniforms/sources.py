@@ -293,19 +293,24 @@ class Sobol(Source):
                            (seed[..., 0, None, None], seed[..., 1, None, None]))
         return words[0]  # (R, dims)
 
+    def _points_of(self, offset, count, total):
+        """(point indices, replicate numbers as int32, index bits) of a window: global index g is
+        point g div R of replicate g mod R; the index bits are 64 past 2^32 points, else 32, fewer
+        when `total` bounds the points per replicate."""
+        glob = _index_words(offset, count)
+        index_bits = _SOBOL_INDEX_BITS if glob.wide else _SOBOL_BITS
+        if total is not None:
+            index_bits = min(index_bits, max(1, int(-(-total // self.replicates) - 1).bit_length()))
+        point, replicate = divmod_index(glob, self.replicates)
+        return point, replicate.astype(jnp.int32), index_bits
+
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         self._check_dims(dims)
         if self.padding:
             return bits_to_unit(self._padded_block(seed, offset, count, dims), dtype)
         if self.scramble == "lms":
             return bits_to_unit(self._lms_block(seed, offset, count, dims, total), dtype)
-        replicates = self.replicates
-        glob = _index_words(offset, count)
-        index_bits = _SOBOL_INDEX_BITS if glob.wide else _SOBOL_BITS
-        if total is not None:
-            index_bits = min(index_bits, max(1, int(-(-total // replicates) - 1).bit_length()))
-        point, replicate = divmod_index(glob, replicates)
-        replicate = replicate.astype(jnp.int32)
+        point, replicate, index_bits = self._points_of(offset, count, total)
         seeds = self.scramble_seeds(seed, dims)[replicate]  # (count, dims)
         fractions = owen_scramble(sobol_points(point, dims, index_bits), seeds)
         return bits_to_unit(fractions, dtype)
@@ -355,13 +360,7 @@ class Sobol(Source):
         return triangular_columns(jnp.stack(words[:32], axis=-1)), words[32]
 
     def _lms_block(self, seed, offset, count, dims, total):
-        replicates = self.replicates
-        glob = _index_words(offset, count)
-        index_bits = _SOBOL_INDEX_BITS if glob.wide else _SOBOL_BITS
-        if total is not None:
-            index_bits = min(index_bits, max(1, int(-(-total // replicates) - 1).bit_length()))
-        point, replicate = divmod_index(glob, replicates)
-        replicate = replicate.astype(jnp.int32)
+        point, replicate, index_bits = self._points_of(offset, count, total)
         columns, shifts = self.lms_matrices(seed, dims)
         # L P(i) + e = e xor (the xor of L V_k over the set bits k of i): the scrambled generator
         # matrix's columns (R, dims, index_bits), then one gathered (count, dims) slice per index
