@@ -1186,6 +1186,24 @@ MUTATIONS = [
       "        return x, jnp.exp(self.distribution.log_prob(x))", "        return x, self.distribution.log_prob(x)",
       ("tests/adapters/test_adapters.py::test_estimators_take_a_foreign_distribution",),
       "a foreign distribution's density taken as its log: every estimate divides by log p"),
+    # ---- the point sets against dimension study (issue 26) ----
+    M("point-set-dims-smooth-factor-off-one", "jaxsample/report/point_set_dims.py",
+      "(0.5 * jnp.pi * jnp.sin(jnp.pi * x) - 1.0) / i", "(0.5 * jnp.pi * jnp.sin(jnp.pi * x) - 0.9) / i",
+      ("tests/report/test_point_set_dims.py::test_the_smooth_product_integrates_to_one_by_gauss_legendre_in_float64",),
+      "a factor of the smooth product integrates to 1 + 0.1/i, not 1: the study's exact value 1 is wrong"),
+    M("point-set-dims-indicator-drops-a-dimension", "jaxsample/report/point_set_dims.py",
+      "jnp.sum(x, axis=-1) < t", "jnp.sum(x[..., 1:], axis=-1) < t",
+      ("tests/report/test_point_set_dims.py::test_the_indicator_integral_matches_closed_forms_and_a_numpy_monte_carlo",),
+      "the indicator sums d - 1 coordinates: its integral is no longer the Irwin-Hall CDF of d"),
+    M("point-set-dims-irwin-hall-drops-a-term", "jaxsample/report/point_set_dims.py",
+      "for k in range(0, math.floor(t) + 1))", "for k in range(0, math.floor(t)))",
+      ("tests/report/test_point_set_dims.py::test_the_indicator_integral_matches_closed_forms_and_a_numpy_monte_carlo",),
+      "the exact integral's alternating sum stops one term early"),
+    M("point-set-dims-every-set-is-random", "jaxsample/report/point_set_dims.py",
+      'return C.Strategy(f"{name}_d{d}", point_set, box, point_set,',
+      'return C.Strategy(f"{name}_d{d}", point_set, box, "random",',
+      ("tests/report/test_point_set_dims.py::test_a_tiny_study_has_its_columns_and_sobol_beats_random_on_the_smooth_product",),
+      "every set of the study silently draws plain random points"),
 ]
 
 def copy_tree(destination: Path) -> None:

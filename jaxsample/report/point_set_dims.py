@@ -1,0 +1,268 @@
+"""Point sets against dimension: every point set on a smooth and a discontinuous integrand, d = 2..32.
+
+Run alone: `python -m jaxsample.report.point_set_dims [--quick] [--json PATH]`; the report
+(`python -m jaxsample report`, not --tiny) prints its table in the section "Point sets against
+dimension" and writes `point_set_dims.csv`.
+
+Integrands on [0, 1]^d, d in `DIMS` (each integral exact, proved in its docstring):
+- "smooth": ∏_{i=1..d} [1 + (π/2 · sin(π x_i) − 1) / i], integral exactly 1 (`smooth_product`);
+- "indicator": 1 if Σ_i x_i < t_d else 0, t_d = d/2 − sqrt(d/12)/2 rounded to eighths, integral
+  the Irwin–Hall CDF at t_d, exact in rationals (`half_space_indicator`; not t_d = d/2, where
+  the lattice's antithetic pairs make every estimate exactly 1/2).
+
+Point sets (`SETS`): random (Philox), sobol (Owen-scrambled), lattice (shifted extensible rank-1
+lattice with the tent transform), halton (random digit permutations), lhs (Latin hypercube), each
+at its default settings. The measurements are the convergence study's own (`convergence.py`),
+with the sampler `UniformBox([0, 1]^d)` (weight 1):
+- error: `convergence.study_one` — per key, one replicate of the set (`_single_replicate_block`);
+  prefix means at n = 2^k (k stepping by 2) for the sets whose prefixes are valid estimates, a new
+  Latin hypercube per n for lhs (its strata depend on n; `convergence.PREFIX`); the RMSE over K
+  independent keys against the exact value;
+- time: `js.estimate(f, UniformBox, key, n_time, uniforms=set)` under jit (the library path: the
+  points and the integrand), the five sets of one (integrand, d) timed in interleaved rounds
+  (`timing.interleaved_medians`); ns/point = median / n_time;
+- verdicts: `convergence.add_verdicts` — the slope of log RMSE against log n (`verdicts.fit_slope`,
+  n >= 256, before any floor) and the time to reach the integrand's target relative RMSE
+  (`TARGETS`: 1e-3 smooth, 1e-2 indicator; `verdicts.time_to_target`, interpolated on the measured
+  curve). Where a set does not reach the target within the study's largest n (and no floor stopped
+  it), its time is *extrapolated* from its last point along its fitted slope, n* = n_max ·
+  (target / error(n_max))^(1/slope), and the table marks it "extrapolated"; a floor is never
+  extrapolated past. The fastest set per row is the one `verdicts.best` names among the measured
+  times (with any tied within 2σ); only when no set reaches the target is it the shortest
+  extrapolated time, so marked.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import time
+from fractions import Fraction
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import jaxsample as js
+from . import convergence as C
+from . import verdicts as V
+from .timing import interleaved_medians
+
+DIMS = (2, 4, 8, 16, 32)
+SETS = ("random", "sobol", "lattice", "halton", "lhs")
+TARGETS = {"smooth": 1e-3, "indicator": 1e-2}  # relative RMSE (RMSE / |exact|)
+
+
+def smooth_product(x):
+    """f(x) = ∏_{i=1..d} [1 + (π/2 · sin(π x_i) − 1) / i] on [0, 1]^d; ∫ f = 1 exactly.
+
+    Each factor integrates to 1 + (∫_0^1 (π/2) sin(π t) dt − 1) / i = 1 + (1 − 1) / i = 1, since
+    ∫_0^1 (π/2) sin(π t) dt = (π/2)(2/π) = 1; the factors depend on distinct coordinates, so the
+    integral of the product is the product of the integrals, 1. The weights 1/i make the later
+    coordinates matter less (the product's variance ∏(1 + (π²/8 − 1)/i²) − 1 stays below
+    e^{(π²/8 − 1)π²/6} − 1 ≈ 0.47 for every d), as in the QMC literature's weighted products."""
+    x = jnp.asarray(x)
+    i = jnp.arange(1, x.shape[-1] + 1, dtype=x.dtype)
+    return jnp.prod(1.0 + (0.5 * jnp.pi * jnp.sin(jnp.pi * x) - 1.0) / i, axis=-1)
+
+
+def indicator_threshold(d: int):
+    """t_d = d/2 − σ_d/2 rounded to a multiple of 1/8 (σ_d = sqrt(d/12), the spread of Σ x_i), as a
+    Fraction: 0.75, 1.75, 3.625, 7.375, 15.125 for d = 2, 4, 8, 16, 32 (probabilities 0.28–0.31).
+
+    Not d/2: the threshold d/2 is symmetric under x -> 1 − x, and so is the shifted lattice with the
+    tent transform (its points come in pairs x, 1 − x), whose every estimate of 1[Σ x_i < d/2] is
+    then exactly 1/2: a zero-variance row that says nothing about discontinuities."""
+    return Fraction(d, 2) - Fraction(round(4 * math.sqrt(d / 12)), 8)
+
+
+def irwin_hall_cdf(t, d: int) -> Fraction:
+    """P(Σ_{i=1..d} U_i < t) for independent uniform U_i, exactly (rational t): the Irwin–Hall CDF
+    (1/d!) Σ_{k=0..⌊t⌋} (−1)^k C(d, k) (t − k)^d, for 0 <= t <= d, summed in exact rationals (in
+    floats its alternating terms cancel catastrophically for large d)."""
+    t = Fraction(t)
+    total = sum((-1) ** k * math.comb(d, k) * (t - k) ** d for k in range(0, math.floor(t) + 1))
+    return total / math.factorial(d)
+
+
+def half_space_indicator(x):
+    """f(x) = 1 if Σ_i x_i < t_d else 0 on [0, 1]^d, t_d = `indicator_threshold(d)`; its integral
+    is P(Σ U_i < t_d), the Irwin–Hall CDF at t_d (`irwin_hall_cdf`, exact): 0.28125 at d = 2.
+
+    Discontinuous across a hyperplane cutting every axis: the kind of integrand (a visibility
+    edge) that slows QMC towards n^(-1/2 - 1/(2d))."""
+    x = jnp.asarray(x)
+    t = float(indicator_threshold(x.shape[-1]))
+    return jnp.where(jnp.sum(x, axis=-1) < t, 1.0, 0.0).astype(x.dtype)
+
+
+def exact_integral(name: str, d: int) -> float:
+    """The exact integral of integrand `name` on [0, 1]^d (see each integrand's docstring)."""
+    if name == "smooth":
+        return 1.0
+    return float(irwin_hall_cdf(indicator_threshold(d), d))
+
+
+FUNCTIONS = {"smooth": smooth_product, "indicator": half_space_indicator}
+
+
+def integrand(name: str, d: int) -> C.Integrand:
+    return C.Integrand(f"{name}_d{d}", f"{name} on [0,1]^{d}", FUNCTIONS[name], exact_integral(name, d))
+
+
+def strategy(name: str, d: int, point_set: str) -> C.Strategy:
+    box = js.UniformBox(jnp.zeros(d, jnp.float32), jnp.ones(d, jnp.float32))
+    return C.Strategy(f"{name}_d{d}", point_set, box, point_set, baseline=point_set == "random")
+
+
+def study_sizes(quick: bool = True, tiny: bool = False) -> tuple[list[int], int, int, int]:
+    """(ns, keys, n_time, timing repeats): quick n = 2^4..2^14 over 8 keys, timed at 2^16; full
+    2^4..2^18 over 16 keys, timed at 2^16; tiny (tests) 2^4..2^10 over 4 keys, timed at 2^10."""
+    if tiny:
+        return [2**k for k in range(4, 11, 2)], 4, 2**10, 1
+    if quick:
+        return [2**k for k in range(4, 15, 2)], 8, 2**16, 3
+    return [2**k for k in range(4, 19, 2)], 16, 2**16, 5
+
+
+def extrapolated_seconds(row: dict, target: float) -> float:
+    """Seconds to reach `target` relative RMSE along the row's fitted slope from its last point
+    (n* = n_max (target / e_max)^(1/slope), times seconds per point); NaN with no falling slope."""
+    slope = row["slope"]
+    if not (math.isfinite(slope) and slope < 0):
+        return math.nan
+    e_max = row["rmse"][-1] / abs(row["exact"])
+    n_star = row["ns"][-1] * (target / e_max) ** (1.0 / slope)
+    return n_star * row["ns_per_sample"] * 1e-9
+
+
+def _time_record(row: dict, target: float) -> dict:
+    t = C.row_times(row)[f"{target:g}"]
+    extrapolated = t.bound == ">" and t.why == "budget"
+    return {"time": t, "extrapolated": extrapolated,
+            "extrapolated_seconds": extrapolated_seconds(row, target) if extrapolated else math.nan}
+
+
+def run_study(quick: bool = True, progress=print, tiny: bool = False, dims=DIMS, sets=SETS,
+              integrands=tuple(FUNCTIONS), sizes=None) -> list[dict]:
+    """One row per (integrand, d, point set): `convergence.study_one` and `add_verdicts` at the
+    integrand's target, plus the extrapolated time where the target lies past the largest n."""
+    ns, n_keys, n_time, repeats = sizes if sizes is not None else study_sizes(quick, tiny)
+    rows = []
+    seed = 0
+    for name in integrands:
+        for d in dims:
+            ig = integrand(name, d)
+            group = [strategy(name, d, s) for s in sets]
+            curves = []
+            for s in group:
+                progress(f"[point sets x dims] {name} d = {d} / {s.uniforms}")
+                seed += 1
+                curves.append(C.study_one(s, ig, ns, n_keys, seed=1000 + seed))
+            runs = {s.name: C._timed_run(s, ig.f, n_time) for s in group}
+            keys = iter(jax.random.split(jax.random.fold_in(jax.random.key(77), seed), 1 + (repeats + 1) * len(runs)))
+            medians = interleaved_medians(runs, keys, repeats=repeats)
+            for curve in curves:
+                row = C.add_verdicts(curve, medians[curve["strategy"]] / n_time, targets=(TARGETS[name],))
+                rec = _time_record(row, TARGETS[name])
+                row.update({"name": name, "d": d, "target": TARGETS[name], "extrapolated": rec["extrapolated"],
+                            "extrapolated_seconds": rec["extrapolated_seconds"]})
+                rows.append(row)
+    return rows
+
+
+def fastest(group: list[dict]) -> tuple[list[str], bool]:
+    """(the fastest set to the target and any tied with it — `verdicts.best` over the measured
+    times —, False); where no set reaches the target: ([the set of the shortest extrapolated
+    time], True); ([], False) when there is neither."""
+    target = f"{group[0]['target']:g}"
+    winners = V.best({r["uniforms"]: C.row_times(r)[target] for r in group})
+    if winners:
+        return winners, False
+    guesses = {r["uniforms"]: r["extrapolated_seconds"] for r in group if math.isfinite(r["extrapolated_seconds"])}
+    if not guesses:
+        return [], False
+    return [min(guesses, key=guesses.get)], True
+
+
+def time_cell(row: dict) -> str:
+    t = C.row_times(row)[f"{row['target']:g}"]
+    if row["extrapolated"]:
+        if math.isfinite(row["extrapolated_seconds"]):
+            return f"~{V.format_seconds(row['extrapolated_seconds'])} (extrapolated)"
+        return f"not reached in {V.format_seconds(t.seconds)} (no slope to extrapolate)"
+    return V.format_time(t)
+
+
+def _slope(row: dict) -> str:
+    if row["slope_points"] < V.MIN_SLOPE_POINTS or not math.isfinite(row["slope"]):
+        return "—"
+    return f"{row['slope']:.2f} ± {row['slope_stderr']:.2f}"
+
+
+def markdown_table(rows: list[dict]) -> str:
+    """Rows (integrand, d); for each set its slope ± se, ns/point and time to the target; the
+    fastest set to the target."""
+    sets = list(dict.fromkeys(r["uniforms"] for r in rows))
+    head = "| integrand | d | target rel. RMSE | " + " | ".join(
+        f"{s} slope | {s} ns/pt | {s} time" for s in sets) + " | fastest to the target |"
+    out = [head, "|---|---|---|" + "---|" * (3 * len(sets) + 1)]
+    for name in dict.fromkeys(r["name"] for r in rows):
+        for d in sorted({r["d"] for r in rows if r["name"] == name}):
+            group = [r for r in rows if r["name"] == name and r["d"] == d]
+            by_set = {r["uniforms"]: r for r in group}
+            cells = []
+            for s in sets:
+                r = by_set.get(s)
+                cells += [_slope(r), f"{r['ns_per_sample']:.1f}", time_cell(r)] if r else ["—"] * 3
+            who, guessed = fastest(group)
+            best = ", ".join(who) if who else "none"
+            if len(who) > 1:
+                best = f"{who[0]} (tied: {', '.join(who[1:])})"
+            if guessed:
+                best += " (extrapolated)"
+            out.append(f"| {name} | {d} | {group[0]['target']:g} | " + " | ".join(cells) + f" | {best} |")
+    return "\n".join(out) + "\n"
+
+
+def fastest_lines(rows: list[dict]) -> str:
+    """One line per (integrand, d) naming the fastest set to the target."""
+    out = []
+    for name in dict.fromkeys(r["name"] for r in rows):
+        for d in sorted({r["d"] for r in rows if r["name"] == name}):
+            group = [r for r in rows if r["name"] == name and r["d"] == d]
+            who, guessed = fastest(group)
+            text = ", ".join(who) if who else "no set"
+            how = " (from extrapolated times: none reached it)" if guessed else ""
+            out.append(f"- {name}, d = {d}: fastest to relative RMSE {group[0]['target']:g}: {text}{how}")
+    return "\n".join(out) + "\n"
+
+
+def csv_records(rows: list[dict]) -> list[dict]:
+    """Flat records for the report's CSV: one per (integrand, d, set)."""
+    out = []
+    for r in rows:
+        t = C.row_times(r)[f"{r['target']:g}"]
+        out.append({"integrand": r["name"], "d": r["d"], "point_set": r["uniforms"], "kind": r["kind"],
+                    "n_max": r["ns"][-1], "n_keys": r["n_keys"], "rmse_at_max": r["rmse_at_max"],
+                    "slope": r["slope"], "slope_stderr": r["slope_stderr"], "ns_per_point": r["ns_per_sample"],
+                    "target": r["target"], "time_s": t.seconds, "time_bound": t.bound,
+                    "extrapolated": r["extrapolated"], "extrapolated_s": r["extrapolated_seconds"]})
+    return out
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--json", default=None, help="also write the rows to this JSON file")
+    args = parser.parse_args()
+    start = time.perf_counter()
+    study = run_study(quick=args.quick)
+    if args.json:
+        import json
+        with open(args.json, "w") as handle:
+            json.dump([dataclasses.asdict(r) if dataclasses.is_dataclass(r) else r for r in study], handle)
+    print(markdown_table(study))
+    print(fastest_lines(study))
+    print(f"({time.perf_counter() - start:.0f} s)")
