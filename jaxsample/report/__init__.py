@@ -17,6 +17,8 @@ jaxsample.report.<module>`; in a checkout also as `python benchmarks/<module>.py
   4. baselines: vectorized NumPy and the uniform-generation floor, as ratios (`baselines.py`),
      and the speed of every public path against its target (`paths.py`);
   5. the curse of dimensionality: quadrature against Monte Carlo and Sobol' (`dimensionality.py`);
+     then every point set against dimension, d = 2..32, on a smooth product and an indicator:
+     slope, ns/point and time to a target error side by side (`point_set_dims.py`);
   6. gradients: variance and cost per gradient estimator (`bench_gradients.py`), gradients with
      their standard errors and estimates to a requested accuracy (`gradient_error_bars.py`);
   7. hard cases: non-finite values/gradients and float32 error at extreme parameters (`hard_cases.py`);
@@ -45,8 +47,8 @@ import numpy as np
 TINY_SAMPLERS = ("CosineHemisphere(malley)", "PhongLobe(1e7)", "UniformCone(1e-8 sr)", "UniformDisk(concentric)",
                  "Exponential(2)", "Discrete(1,2,3,4)", "Mixture(cosine, Phong 20)")
 # The sections --tiny leaves out (the slowest); each says so where it would be.
-TINY_SKIPPED = ("baselines", "the curse of dimensionality", "gradient estimators", "gradients with error bars",
-                "the scene")
+TINY_SKIPPED = ("baselines", "the curse of dimensionality", "point sets against dimension", "gradient estimators",
+                "gradients with error bars", "the scene")
 NO_VERDICTS = "no verdicts at smoke-test size"
 
 
@@ -305,6 +307,26 @@ def study_section(rows: list[dict], tiny: bool = False) -> list[str]:
             convergence.markdown_table(rows, verdicts=not tiny)]
 
 
+def point_set_dims_section(rows: list[dict]) -> list[str]:
+    """"Point sets against dimension": what was measured (read off the rows: sizes, keys, targets)
+    and the table of slope, ns/point and time to the target per (integrand, d) and set, then the
+    fastest set per row (`point_set_dims.py`)."""
+    point_set_dims = _piece("point_set_dims")
+    ns, keys = rows[0]["ns"], rows[0]["n_keys"]
+    dims = sorted({r["d"] for r in rows})
+    return ["## Point sets against dimension\n",
+            f"Every point set on [0,1]^d, d = {', '.join(map(str, dims))}: the smooth product "
+            "∏[1 + ((π/2)sin(πx_i) − 1)/i] (integral 1, target relative RMSE "
+            f"{point_set_dims.TARGETS['smooth']:g}) and the indicator of Σx_i < t_d (t_d = d/2 − sqrt(d/12)/2 "
+            "rounded to eighths; integral the Irwin–Hall CDF, target "
+            f"{point_set_dims.TARGETS['indicator']:g}). RMSE over {keys} keys at n = {ns[0]}..{ns[-1]}; "
+            "slope ± se of log RMSE against log n (n ≥ 256); ns/point of the library path (`estimate` "
+            "under jit: points and integrand); the time to the target, \"extrapolated\" along the slope "
+            "where the largest n does not reach it (`python -m jaxsample.report.point_set_dims`; CSV: "
+            "point_set_dims.csv).\n",
+            point_set_dims.markdown_table(rows), point_set_dims.fastest_lines(rows)]
+
+
 def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -364,6 +386,15 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         md += ["## The curse of dimensionality\n", "|error| of ∫∏(π/2)sin(πx_i) = 1 on [0,1]^d (evaluations "
                "used in parentheses); Monte Carlo entries are RMSE over independent keys.\n",
                dimensionality.markdown_table(dims_rows)]
+
+    if tiny:
+        md += ["## Point sets against dimension\n",
+               "Skipped in --tiny mode (run `python -m jaxsample.report.point_set_dims`).\n"]
+    else:
+        point_set_dims = _piece("point_set_dims")
+        psd_rows = point_set_dims.run_study(quick=quick, progress=progress)
+        _write_csv(out / "point_set_dims.csv", point_set_dims.csv_records(psd_rows))
+        md += point_set_dims_section(psd_rows)
 
     if tiny:
         md += ["## Gradient estimators\n",

@@ -75,3 +75,8 @@ def test_a_tiny_study_has_its_columns_and_sobol_beats_random_on_the_smooth_produ
     assert "smooth, d = 2: fastest" in P.fastest_lines(rows)
     records = P.csv_records(rows)
     assert {r["point_set"] for r in records} == {"random", "sobol"}
+    # The report's section is built from these rows: heading, what was measured, the table.
+    import jaxsample.report as R
+    section = "".join(R.point_set_dims_section(rows))
+    assert section.startswith("## Point sets against dimension") and text in section
+    assert "RMSE over 8 keys at n = 16..4096" in section and "d = 2:" in section
