@@ -1200,8 +1200,8 @@ MUTATIONS = [
       ("tests/report/test_point_set_dims.py::test_the_indicator_integral_matches_closed_forms_and_a_numpy_monte_carlo",),
       "the exact integral's alternating sum stops one term early"),
     M("point-set-dims-every-set-is-random", "jaxsample/report/point_set_dims.py",
-      'return C.Strategy(f"{name}_d{d}", point_set, box, point_set,',
-      'return C.Strategy(f"{name}_d{d}", point_set, box, "random",',
+      "block = C._single_replicate_block(point_set, _both, d, ns[-1])",
+      'block = C._single_replicate_block("random", _both, d, ns[-1])',
       ("tests/report/test_point_set_dims.py::test_a_tiny_study_has_its_columns_and_sobol_beats_random_on_the_smooth_product",),
       "every set of the study silently draws plain random points"),
 ]

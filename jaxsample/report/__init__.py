@@ -320,8 +320,8 @@ def point_set_dims_section(rows: list[dict]) -> list[str]:
             f"{point_set_dims.TARGETS['smooth']:g}) and the indicator of Σx_i < t_d (t_d = d/2 − sqrt(d/12)/2 "
             "rounded to eighths; integral the Irwin–Hall CDF, target "
             f"{point_set_dims.TARGETS['indicator']:g}). RMSE over {keys} keys at n = {ns[0]}..{ns[-1]}; "
-            "slope ± se of log RMSE against log n (n ≥ 256); ns/point of the library path (`estimate` "
-            "under jit: points and integrand); the time to the target, \"extrapolated\" along the slope "
+            "slope ± se of log RMSE against log n (n ≥ 256); ns/point of the set alone (jit, interleaved "
+            "medians); the time to the target (n × (set + integrand) ns), \"extrapolated\" along the slope "
             "where the largest n does not reach it (`python -m jaxsample.report.point_set_dims`; CSV: "
             "point_set_dims.csv).\n",
             point_set_dims.markdown_table(rows), point_set_dims.fastest_lines(rows)]

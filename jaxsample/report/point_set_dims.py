@@ -13,14 +13,16 @@ Integrands on [0, 1]^d, d in `DIMS` (each integral exact, proved in its docstrin
 Point sets (`SETS`): random (Philox), sobol (Owen-scrambled), lattice (shifted extensible rank-1
 lattice with the tent transform), halton (random digit permutations), lhs (Latin hypercube), each
 at its default settings. The measurements are the convergence study's own (`convergence.py`),
-with the sampler `UniformBox([0, 1]^d)` (weight 1):
-- error: `convergence.study_one` — per key, one replicate of the set (`_single_replicate_block`);
+the sampler the identity on [0, 1]^d (weight 1); one compiled function per (set, d) draws the
+points and evaluates both integrands (a point set's compile is most of the study's time):
+- error: as `convergence.study_one` — per key, one replicate of the set (`_single_replicate_block`);
   prefix means at n = 2^k (k stepping by 2) for the sets whose prefixes are valid estimates, a new
   Latin hypercube per n for lhs (its strata depend on n; `convergence.PREFIX`); the RMSE over K
   independent keys against the exact value;
-- time: `js.estimate(f, UniformBox, key, n_time, uniforms=set)` under jit (the library path: the
-  points and the integrand), the five sets of one (integrand, d) timed in interleaved rounds
-  (`timing.interleaved_medians`); ns/point = median / n_time;
+- time: ns/point is the set's own: n_time points of it (R = 2 replicates, all kept) under jit,
+  the five sets of one d timed in interleaved rounds (`timing.interleaved_medians`), median /
+  n_time; each integrand's ns/evaluation is timed alone on fixed points; a row's time of n points
+  is n x (set + integrand), a model of `estimate`, which runs the two fused;
 - verdicts: `convergence.add_verdicts` — the slope of log RMSE against log n (`verdicts.fit_slope`,
   n >= 256, before any floor) and the time to reach the integrand's target relative RMSE
   (`TARGETS`: 1e-3 smooth, 1e-2 indicator; `verdicts.time_to_target`, interpolated on the measured
@@ -44,7 +46,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-import jaxsample as js
+from jaxsample import uniforms as U
 from . import convergence as C
 from . import verdicts as V
 from .timing import interleaved_medians
@@ -107,13 +109,10 @@ def exact_integral(name: str, d: int) -> float:
 FUNCTIONS = {"smooth": smooth_product, "indicator": half_space_indicator}
 
 
-def integrand(name: str, d: int) -> C.Integrand:
-    return C.Integrand(f"{name}_d{d}", f"{name} on [0,1]^{d}", FUNCTIONS[name], exact_integral(name, d))
-
-
-def strategy(name: str, d: int, point_set: str) -> C.Strategy:
-    box = js.UniformBox(jnp.zeros(d, jnp.float32), jnp.ones(d, jnp.float32))
-    return C.Strategy(f"{name}_d{d}", point_set, box, point_set, baseline=point_set == "random")
+def _both(u):
+    """(count, d) uniforms -> (count, 2): the smooth product and the indicator at each point (the
+    sampler is the identity on [0, 1]^d, of density 1, so these are the estimator's values)."""
+    return jnp.stack([jax.vmap(smooth_product)(u), jax.vmap(half_space_indicator)(u)], axis=-1)
 
 
 def study_sizes(quick: bool = True, tiny: bool = False) -> tuple[list[int], int, int, int]:
@@ -124,6 +123,51 @@ def study_sizes(quick: bool = True, tiny: bool = False) -> tuple[list[int], int,
     if quick:
         return [2**k for k in range(4, 15, 2)], 8, 2**16, 3
     return [2**k for k in range(4, 19, 2)], 16, 2**16, 5
+
+
+def _estimates(point_set: str, d: int, ns: list[int], n_keys: int, seed: int) -> np.ndarray:
+    """(2, n_keys, len(ns)) estimates of the two integrands: for each key one replicate of the set
+    (`convergence._single_replicate_block`), whose prefix means at each n are the estimates where
+    `convergence.PREFIX` says prefixes are valid, else (lhs) a new replicate per n."""
+    out = np.zeros((2, n_keys, len(ns)))
+    if C.PREFIX[point_set] != "anew":
+        block = C._single_replicate_block(point_set, _both, d, ns[-1])
+        for i, key in enumerate(jax.random.split(jax.random.key(seed), n_keys)):
+            y = np.asarray(block(U.seed_from_key(key)))
+            for c in range(2):
+                out[c, i] = C._prefix_means(y[:, c], ns)
+        return out
+    for j, n in enumerate(ns):
+        block = C._single_replicate_block(point_set, _both, d, n)
+        for i, key in enumerate(jax.random.split(jax.random.fold_in(jax.random.key(seed), j), n_keys)):
+            out[:, i, j] = np.mean(np.asarray(block(U.seed_from_key(key)), np.float64), axis=0)
+    return out
+
+
+def _point_timers(d: int, sets, n_time: int) -> dict:
+    """jit: key -> the column sums of n_time points of each set (R = 2 replicates, as the error
+    study draws them; every point kept: the cost of n_time points of the set alone)."""
+    def timer(point_set):
+        source = C._two_replicate_source(point_set)[0]
+        return jax.jit(lambda key: jnp.sum(source.block(U.seed_from_key(key), jnp.uint32(0), n_time, d,
+                                                        jnp.float32, total=n_time), axis=0))
+    return {s: timer(s) for s in sets}
+
+
+def _integrand_seconds(d: int, n_time: int, repeats: int, key) -> dict:
+    """Median seconds per point of each integrand alone, on n_time fixed uniform points (jit)."""
+    u = jax.random.uniform(key, (n_time, d), jnp.float32)
+    out = {}
+    for name, f in FUNCTIONS.items():
+        g = jax.jit(lambda v, f=f: jnp.mean(jax.vmap(f)(v)))
+        g(u).block_until_ready()
+        times = []
+        for _ in range(max(repeats, 1)):
+            start = time.perf_counter()
+            g(u).block_until_ready()
+            times.append(time.perf_counter() - start)
+        out[name] = float(np.median(times)) / n_time
+    return out
 
 
 def extrapolated_seconds(row: dict, target: float) -> float:
@@ -146,30 +190,45 @@ def _time_record(row: dict, target: float) -> dict:
 
 def run_study(quick: bool = True, progress=print, tiny: bool = False, dims=DIMS, sets=SETS,
               integrands=tuple(FUNCTIONS), sizes=None) -> list[dict]:
-    """One row per (integrand, d, point set): `convergence.study_one` and `add_verdicts` at the
-    integrand's target, plus the extrapolated time where the target lies past the largest n."""
+    """One row per (integrand, d, point set), in `convergence.study_one`'s form (ns, RMSE, bias over
+    the keys) with `convergence.add_verdicts` at the integrand's target, and the extrapolated time
+    where the target lies past the largest n. One compiled function per (set, d) serves both
+    integrands (the compile of a point set, not its run, is most of the study's time).
+
+    Time per point: `ns_per_point` is the set's own (its points, `_point_timers`, the sets of one d
+    timed in interleaved rounds), `integrand_ns` the integrand's on fixed points; the verdict's time
+    is n x their sum (a model: the two run fused in `estimate`, which can be a little faster)."""
     ns, n_keys, n_time, repeats = sizes if sizes is not None else study_sizes(quick, tiny)
     rows = []
-    seed = 0
-    for name in integrands:
-        for d in dims:
-            ig = integrand(name, d)
-            group = [strategy(name, d, s) for s in sets]
-            curves = []
-            for s in group:
-                progress(f"[point sets x dims] {name} d = {d} / {s.uniforms}")
-                seed += 1
-                curves.append(C.study_one(s, ig, ns, n_keys, seed=1000 + seed))
-            runs = {s.name: C._timed_run(s, ig.f, n_time) for s in group}
-            keys = iter(jax.random.split(jax.random.fold_in(jax.random.key(77), seed), 1 + (repeats + 1) * len(runs)))
-            medians = interleaved_medians(runs, keys, repeats=repeats)
-            for curve in curves:
-                row = C.add_verdicts(curve, medians[curve["strategy"]] / n_time, targets=(TARGETS[name],))
+    for di, d in enumerate(dims):
+        estimates = {}
+        for si, point_set in enumerate(sets):
+            progress(f"[point sets x dims] d = {d} / {point_set}")
+            estimates[point_set] = _estimates(point_set, d, ns, n_keys, seed=1000 + 100 * d + si)
+        runs = _point_timers(d, sets, n_time)
+        keys = iter(jax.random.split(jax.random.key(7000 + d), 2 + (repeats + 1) * len(runs)))
+        medians = interleaved_medians(runs, keys, repeats=repeats)
+        integrand_s = _integrand_seconds(d, n_time, repeats, next(keys))
+        for c, name in enumerate(FUNCTIONS):
+            if name not in integrands:
+                continue
+            exact = exact_integral(name, d)
+            for point_set in sets:
+                errors = estimates[point_set][c] - exact
+                rmse, bias = np.sqrt(np.mean(errors**2, axis=0)), np.mean(errors, axis=0)
+                row = {"integrand": f"{name}_d{d}", "strategy": point_set, "uniforms": point_set,
+                       "kind": C.POINT_SET_KINDS.get(point_set, "plain"), "baseline": point_set == "random",
+                       "exact": exact, "ns": list(ns), "rmse": rmse.tolist(), "bias": bias.tolist(),
+                       "rmse_at_max": float(rmse[-1]), "bias_at_max": float(bias[-1]), "n_keys": n_keys}
+                point_s = medians[point_set] / n_time
+                row = C.add_verdicts(row, point_s + integrand_s[name], targets=(TARGETS[name],))
                 rec = _time_record(row, TARGETS[name])
-                row.update({"name": name, "d": d, "target": TARGETS[name], "extrapolated": rec["extrapolated"],
+                row.update({"name": name, "d": d, "target": TARGETS[name], "ns_per_point": point_s * 1e9,
+                            "integrand_ns": integrand_s[name] * 1e9, "extrapolated": rec["extrapolated"],
                             "extrapolated_seconds": rec["extrapolated_seconds"]})
                 rows.append(row)
-    return rows
+    order = {name: i for i, name in enumerate(FUNCTIONS)}
+    return sorted(rows, key=lambda r: (order[r["name"]], r["d"]))
 
 
 def fastest(group: list[dict]) -> tuple[list[str], bool]:
@@ -215,7 +274,7 @@ def markdown_table(rows: list[dict]) -> str:
             cells = []
             for s in sets:
                 r = by_set.get(s)
-                cells += [_slope(r), f"{r['ns_per_sample']:.1f}", time_cell(r)] if r else ["—"] * 3
+                cells += [_slope(r), f"{r['ns_per_point']:.1f}", time_cell(r)] if r else ["—"] * 3
             who, guessed = fastest(group)
             best = ", ".join(who) if who else "none"
             if len(who) > 1:
@@ -246,7 +305,8 @@ def csv_records(rows: list[dict]) -> list[dict]:
         t = C.row_times(r)[f"{r['target']:g}"]
         out.append({"integrand": r["name"], "d": r["d"], "point_set": r["uniforms"], "kind": r["kind"],
                     "n_max": r["ns"][-1], "n_keys": r["n_keys"], "rmse_at_max": r["rmse_at_max"],
-                    "slope": r["slope"], "slope_stderr": r["slope_stderr"], "ns_per_point": r["ns_per_sample"],
+                    "slope": r["slope"], "slope_stderr": r["slope_stderr"], "ns_per_point": r["ns_per_point"],
+                    "integrand_ns": r["integrand_ns"],
                     "target": r["target"], "time_s": t.seconds, "time_bound": t.bound,
                     "extrapolated": r["extrapolated"], "extrapolated_s": r["extrapolated_seconds"]})
     return out
