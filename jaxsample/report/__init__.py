@@ -315,7 +315,11 @@ def point_set_dims_section(rows: list[dict]) -> list[str]:
     ns, keys = rows[0]["ns"], rows[0]["n_keys"]
     dims = sorted({r["d"] for r in rows})
     return ["## Point sets against dimension\n",
-            f"Every point set on [0,1]^d, d = {', '.join(map(str, dims))}: the smooth product "
+            f"Every point set on [0,1]^d, d = {', '.join(map(str, dims))}"
+            + (f" (--quick stops at d = {dims[-1]}, the compile of Halton and LHS growing with d; the full "
+               f"report runs d = {', '.join(map(str, point_set_dims.DIMS))})" if dims[-1] < point_set_dims.DIMS[-1]
+               else "")
+            + ": the smooth product "
             "∏[1 + ((π/2)sin(πx_i) − 1)/i] (integral 1, target relative RMSE "
             f"{point_set_dims.TARGETS['smooth']:g}) and the indicator of Σx_i < t_d (t_d = d/2 − sqrt(d/12)/2 "
             "rounded to eighths; integral the Irwin–Hall CDF, target "
