@@ -305,7 +305,8 @@ def fastest_lines(rows: list[dict]) -> str:
         for d in sorted({r["d"] for r in rows if r["name"] == name}):
             group = [r for r in rows if r["name"] == name and r["d"] == d]
             who, guessed = fastest(group)
-            text = ", ".join(who) if who else "no set"
+            text = (who[0] + (f" (tied within 2σ or not told apart: {', '.join(who[1:])})" if who[1:] else "")
+                    if who else "no set")
             how = " (from extrapolated times: none reached it)" if guessed else ""
             out.append(f"- {name}, d = {d}: fastest to relative RMSE {group[0]['target']:g}: {text}{how}")
     return "\n".join(out) + "\n"
