@@ -13,6 +13,10 @@ sobol-padded 10.5, sobol-lms-padded 29.3, lattice 10.0, halton 128, halton-owen 
 ns/point (ratios 1, 3.2, 5.2, 3.1, 8.6, 2.9, 38, 50, 4.7). On a quieter machine the same day
 (an ad hoc script, random first and last): random 2.8-3.2, lattice 6.3 before the table path
 and 5.5 after (1.8x).
+Measured 2026-12-03 after Halton's uint32 digits (a second session sharing the machine): random 4.4,
+sobol 11.7, sobol-lms 17.2, sobol-padded 8.5, sobol-lms-padded 15.4, lattice 8.6, halton 11.2,
+halton-owen 36.1, lhs 18.5 ns/point (ratios 1, 2.6, 3.9, 1.9, 3.5, 2.0, 2.5, 8.2, 4.2); halton was
+38x and halton-owen 50x before.
 """
 
 from __future__ import annotations

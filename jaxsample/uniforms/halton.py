@@ -12,19 +12,30 @@ pi_k(d_k) for random permutations pi_k of {0 .. b-1} (Owen 1995, "Randomly permu
   uniformly random permutation, so every point is uniform and every pair of points has the joint
   law (hence the estimator's variance) of the uniformly random digit permutation.
 - scramble="owen": nested permutations: pi_k also depends on the digits d_0 .. d_(k-1) below it
-  (the prefix i mod b^k), through a 64-bit hash (the splitmix64 finalizer) of the replicate and
-  coordinate's seed, k and the prefix (the hashing approach of Burley 2020 for base 2, here per
-  digit of base b). In base 2 it is `owen_scramble`, the Laine–Karras hash of `sobol`.
+  (the prefix i mod b^k): its coefficients come from two rounds of a bijective 32-bit hash (the
+  "lowbias32" multiply-xorshift) of the prefix xor a Philox word of (replicate, coordinate, k),
+  the hashing approach of Burley 2020 for base 2, here per digit of base b. In base 2 it is
+  `owen_scramble`, the Laine–Karras hash of `sobol`.
 
-Digits and precision. An index below 2^64 has K = ceil(64 / log2 b) base-b digits; the digits
-above the index's own are 0, and their scrambled values and everything below b^-K are one uniform
-tail (per replicate and coordinate for "permutation", per point for "owen": what an infinite
-digit expansion gives in distribution). The sum is taken in float64 by Horner's rule and cut to a
-32-bit fraction, so each point is uniform on the 2^32 grid up to float64 rounding (2^-52
-relative); the affine coefficients come from 32-bit words reduced mod b, a bias below b / 2^32
-(< 2e-6 for the largest prime kept) in any digit's probabilities. Base 2 (coordinate 1) is
-exact bit arithmetic: rev32(i) xor a random word ("permutation"; the index's bits past 32 fall
-below 2^-32), Owen-scrambled van der Corput ("owen").
+Digits and precision. The output is `bits_to_unit` of a 2^-23 (float32) or 2^-32 (float64) cell,
+so only the K = ceil(bits / log2 b) most significant digit positions can move a point by a cell
+(b^-K <= 2^-bits); the positions below them and everything past the index's own digits are one
+uniform tail: per replicate and coordinate for "permutation" (the permuted zeros pi_k(0) summed
+with a uniform word, as for an index below 2^32 the positions up to 2^64 give exactly), per point
+for "owen" (hashed from the whole index): what an infinite digit expansion gives in
+distribution. Digits are extracted in uint32 for an index below 2^32 (each straight from the
+index, (i div b^k) mod b, so XLA fuses every digit into its consumer), in uint64 above, with the
+same values. The sum is exact in uint32 for the leading positions (b^m < 2^31) and finished in
+float64 (two roundings, 2^-52 relative), so each point is uniform on its output grid; the
+affine coefficients come from 32-bit words reduced mod b, a bias below b / 2^32 (< 2e-6 for the
+largest prime kept) in any digit's probabilities. Digit permutations of bases up to 5 are a
+chain of selects among the b values pi(0) .. pi(b - 1) computed per replicate. Base 2
+(coordinate 1) is exact bit arithmetic: rev32(i) xor a random word ("permutation"; the index's
+bits past 32 fall below 2^-32), Owen-scrambled van der Corput ("owen").
+
+Cost (benchmarks/point_sets.py, `estimate` over `UniformSphere`, 2 coordinates): about 3x
+`Random` per point for "permutation" (the base-3 coordinate needs 15 permuted digits at float32
+resolution, each a lookup and a multiply-add per lane), about 10x for "owen" (two hashes per digit).
 
 Replicates: global index g is point g div R of replicate g mod R (the `Source` convention), each
 replicate with independent permutations, so the spread of the R replicate means is the standard
@@ -42,7 +53,7 @@ import numpy as np
 
 from .._core.pytree import static_field
 from .index import Index
-from .philox import _u32, bits_to_unit
+from .philox import _u32, bits_to_unit, philox4x32
 from .sobol import _reverse_bits, _scramble_reversed
 from .sources import Source, _check_replicates
 from ._replicated import STREAM_HALTON, Layout, check_dims, replicate_words, stack_lanes
@@ -83,6 +94,113 @@ def _digit_count(base: int) -> int:
     return k
 
 
+def _digit_count32(base: int, bits: int = 32) -> int:
+    """The fewest base-b digits that hold every index below 2^bits (b^K >= 2^bits): below them
+    the radical inverse moves by less than 2^-bits, one cell of a `bits`-bit output."""
+    k, power = 0, 1
+    while power < 1 << bits:
+        power *= base
+        k += 1
+    return k
+
+
+def _output_bits(dtype) -> int:
+    """The resolution of `bits_to_unit`'s output: 2^-23 cells for float32, 2^-32 for float64."""
+    return 32 if jnp.dtype(dtype) == jnp.float64 else 23
+
+
+# Bases whose digit permutation is evaluated as a chain of selects on the digit (b - 1 selects of
+# per-replicate constants) instead of (a d + c) mod b (a multiply, an add and a remainder).
+SELECT_BASES = 5
+
+
+def _permuted(d, c_table, a_table, base: int, take):
+    """pi(d) = (a d + c) mod b for digits d < b; a and c are per-replicate tables (R,) read at each
+    lane's replicate by `take`. For b <= SELECT_BASES the b values pi(0) .. pi(b - 1) are computed
+    on the tables and the lane selects among them."""
+    c = c_table % _u32(base)
+    a = _u32(1) + a_table % _u32(base - 1)
+    if base <= SELECT_BASES:
+        out = take((a * _u32(base - 1) + c) % _u32(base))
+        for v in reversed(range(base - 1)):
+            out = jnp.where(d == _u32(v), take((a * _u32(v) + c) % _u32(base)), out)
+        return out
+    return (take(a) * d + take(c)) % _u32(base)
+
+
+def _mix32(x):
+    """A bijective 32-bit mix with _mix32(0) = 0 (two multiply-xorshift rounds; the constants of
+    C. Wellons' "lowbias32", found by his hash-prospector search)."""
+    x = x ^ (x >> _u32(16))
+    x = x * _u32(0x7FEB352D)
+    x = x ^ (x >> _u32(15))
+    x = x * _u32(0x846CA68B)
+    return x ^ (x >> _u32(16))
+
+
+def _below(h, m: int):
+    """floor(h m / 2^32) for uint32 h: a value in [0, m), bias below m / 2^32 per value."""
+    with jax.enable_x64(True):
+        return ((h.astype(jnp.uint64) * jnp.uint64(m)) >> jnp.uint64(32)).astype(jnp.uint32)
+
+
+def _digits(point: Index, base: int, count: int):
+    """The `count` lowest base-b digits of the index (uint32 arrays), lowest first, and the
+    prefixes i mod b^k before each digit as (lo, hi) uint32 words (hi None for a narrow index).
+    A narrow index (below 2^32) is divided in uint32, which vectorizes; a wide one in uint64."""
+    digits, prefixes = [], []
+    if point.hi is None:
+        # Each digit straight from the index, (i // b^k) % b, and each prefix as i % b^k: no value
+        # is shared along a chain of divisions, so XLA fuses every digit into its consumer instead
+        # of writing the digits to memory (a shared chain became one multi-output fusion).
+        i = point.lo
+        for k in range(count):
+            power = base ** k
+            prefixes.append((i % _u32(power) if k else jnp.zeros_like(i), None))
+            digits.append((i // _u32(power) if k else i) % _u32(base))
+        return digits, prefixes
+    with jax.enable_x64(True):
+        rest = _index64(point)
+        prefix, power = jnp.zeros_like(rest), 1
+        for k in range(count):
+            prefixes.append(((prefix & jnp.uint64(0xFFFFFFFF)).astype(jnp.uint32),
+                             (prefix >> jnp.uint64(32)).astype(jnp.uint32)))
+            d = rest % jnp.uint64(base)
+            rest = rest // jnp.uint64(base)
+            digits.append(d.astype(jnp.uint32))
+            if k + 1 < count:
+                prefix = prefix + d * jnp.uint64(power % (1 << 64))
+                power *= base
+    return digits, prefixes
+
+
+def _exact_digits(base: int) -> int:
+    """m: the most base-b digits whose integer b^(m-1) d_0 + ... + d_(m-1) fits a non-negative
+    int32 (b^m < 2^31), whose conversion to float64 is one vector instruction."""
+    m = 0
+    while base ** (m + 1) < 1 << 31:
+        m += 1
+    return m
+
+
+def _horner(digits, start, base: int):
+    """sum_k digit_k b^-(k+1) + start b^-K (digits lowest position first, K of them) in float64.
+
+    The m most significant positions are summed exactly as the integer H = d_0 b^(m-1) + ... +
+    d_(m-1) by Horner's rule in uint32 (b^m < 2^32), the positions below them by Horner's rule in
+    float64 from `start`, and v = (H + w) b^-m: two float64 roundings in all, and uint32
+    arithmetic (which vectorizes at twice the float64 width) for the digits that matter most."""
+    m = min(_exact_digits(base), len(digits))
+    high = jnp.zeros_like(digits[0])
+    for d in digits[:m]:
+        high = high * _u32(base) + d
+    with jax.enable_x64(True):
+        w = start
+        for d in reversed(digits[m:]):
+            w = (d.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base)
+        return (high.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base ** m)
+
+
 def _index64(point: Index):
     """The index as uint64 (call inside enable_x64)."""
     lo = point.lo.astype(jnp.uint64)
@@ -100,6 +218,15 @@ def _mix64(x):
     return x ^ (x >> jnp.uint64(31))
 
 
+def _to_unit(v, dtype):
+    """A float64 fraction v in [0, 1] -> `bits_to_unit(floor(v 2^32))`: for float32 the cell
+    floor(v 2^23) in int32 (vector conversions both ways), the same value as through the word."""
+    if jnp.dtype(dtype) == jnp.float64:
+        return bits_to_unit(_to_word(v), dtype)
+    cell = jnp.minimum((v * 2.0 ** 23).astype(jnp.int32), (1 << 23) - 1)
+    return cell.astype(jnp.float32) * np.float32(2.0 ** -23) + np.float32(2.0 ** -24)
+
+
 def _to_word(v):
     """A float64 fraction in [0, 1] -> a uint32 fraction floor(v 2^32), at most 2^32 - 1."""
     return jnp.minimum(v * 2.0 ** 32, 4294967295.0).astype(jnp.uint32)
@@ -112,20 +239,13 @@ def halton_points(index, dims: int) -> jax.Array:
     if not isinstance(index, Index):
         index = Index(None, _u32(index))
     columns = []
-    with jax.enable_x64(True):
-        i = _index64(index)
-        for b in (int(p) for p in primes):
-            if b == 2:
-                columns.append(_reverse_bits(index.lo))
-                continue
-            digits, rest = [], i
-            for _ in range(_digit_count(b)):
-                digits.append(rest % jnp.uint64(b))
-                rest = rest // jnp.uint64(b)
-            v = jnp.zeros(i.shape, jnp.float64)
-            for d in reversed(digits):
-                v = (d.astype(jnp.float64) + v) * (1.0 / b)
-            columns.append(_to_word(v))
+    for b in (int(p) for p in primes):
+        if b == 2:
+            columns.append(_reverse_bits(index.lo))
+            continue
+        digits, _ = _digits(index, b, _digit_count32(b) if index.hi is None else _digit_count(b))
+        with jax.enable_x64(True):
+            columns.append(_to_word(_horner(digits, jnp.zeros(index.lo.shape, jnp.float64), b)))
     return jnp.stack(columns, axis=-1)
 
 
@@ -149,8 +269,12 @@ class Halton(Source):
     def digit_words(self, seed, dims: int):
         """Philox words per (replicate, coordinate, digit position): four arrays (R, dims, K + 1)."""
         k_max = max(_digit_count(int(b)) for b in halton_primes(dims)) + 1
-        words = [replicate_words(seed, self.replicates, dims, STREAM_HALTON, k) for k in range(k_max)]
-        return tuple(jnp.stack([w[q] for w in words], axis=-1) for q in range(4))
+        # One Philox call over the whole (R, dims, K + 1) grid of counters (r, j, stream, k): the
+        # words `replicate_words(seed, R, dims, STREAM_HALTON, k)` gives, without K + 1 programs.
+        shape = (self.replicates, dims, k_max)
+        r, j, k = (jax.lax.broadcasted_iota(jnp.uint32, shape, axis) for axis in range(3))
+        return philox4x32((r, j, jnp.full(shape, _u32(STREAM_HALTON)), k),
+                          (seed[..., 0, None, None, None], seed[..., 1, None, None, None]))
 
     def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         """One group of `dims` lanes, (count / R, R) for the estimators' chunks, else (count,)."""
@@ -158,42 +282,47 @@ class Halton(Source):
         layout = Layout(offset, count, self.replicates, aligned)
         w0, w1, w2, w3 = self.digit_words(seed, dims)
         owen = self.scramble == "owen"
+        point = layout.point
+        narrow = point.hi is None
         lanes = []
-        with jax.enable_x64(True):
-            i = _index64(layout.point)
-            for j, b in enumerate(int(p) for p in primes):
-                take = lambda table: layout.take(table[:, j])
-                if b == 2:
-                    word = (_scramble_reversed(layout.point.lo, take(w0[:, :, 0])) if owen
-                            else _reverse_bits(layout.point.lo) ^ take(w0[:, :, 0]))
-                    lanes.append(bits_to_unit(layout.full(word), dtype))
-                    continue
-                k_count = _digit_count(b)
-                seed64 = (take(w0[:, :, 0]).astype(jnp.uint64) << jnp.uint64(32)) | take(w1[:, :, 0]).astype(jnp.uint64)
-                digits, rest, prefix, power = [], i, jnp.zeros_like(i), 1
-                for k in range(k_count):
-                    d = rest % jnp.uint64(b)
-                    rest = rest // jnp.uint64(b)
-                    if owen:
-                        h = _mix64(seed64 + jnp.uint64((k + 1) * 0x9E3779B97F4A7C15 % (1 << 64))
-                                   + prefix * jnp.uint64(0xD6E8FEB86659FD93))
-                        c = (h & jnp.uint64(0xFFFFFFFF)) % jnp.uint64(b)
-                        a = jnp.uint64(1) + (h >> jnp.uint64(32)) % jnp.uint64(b - 1)
-                        prefix = prefix + d * jnp.uint64(power % (1 << 64))
-                        power *= b
-                    else:
-                        c = take(w2[:, :, k]).astype(jnp.uint64) % jnp.uint64(b)
-                        a = jnp.uint64(1) + take(w3[:, :, k]).astype(jnp.uint64) % jnp.uint64(b - 1)
-                    digits.append((a * d + c) % jnp.uint64(b))
+        for j, b in enumerate(int(p) for p in primes):
+            take = lambda table: layout.take(table[:, j])
+            if b == 2:
+                word = (_scramble_reversed(point.lo, take(w0[:, :, 0])) if owen
+                        else _reverse_bits(point.lo) ^ take(w0[:, :, 0]))
+                lanes.append(bits_to_unit(layout.full(word), dtype))
+                continue
+            k64 = _digit_count(b)
+            k_count = _digit_count32(b, _output_bits(dtype))
+            digits, prefixes = _digits(point, b, k_count)
+            scrambled = []
+            for k, (d, (lo, hi)) in enumerate(zip(digits, prefixes)):
                 if owen:
-                    tail_bits = _mix64(seed64 ^ jnp.uint64(0xA0761D6478BD642F) + i * jnp.uint64(0xE7037ED1A0B428DB))
-                    tail = (tail_bits >> jnp.uint64(11)).astype(jnp.float64) * 2.0 ** -53
+                    key = lo ^ take(w2[:, :, k]) if hi is None else lo ^ take(w2[:, :, k]) ^ _mix32(hi)
+                    h1 = _mix32(key)
+                    h2 = _mix32(h1 ^ take(w3[:, :, k]))
+                    c, a = _below(h1, b), _u32(1) + _below(h2, b - 1)
+                    scrambled.append((a * d + c) % _u32(b))
                 else:
-                    tail = (take(w1[:, :, k_count]).astype(jnp.float64) + 0.5) * 2.0 ** -32
-                v = tail
-                for d in reversed(digits):
-                    v = (d.astype(jnp.float64) + v) * (1.0 / b)
-                lanes.append(bits_to_unit(layout.full(_to_word(v)), dtype))
+                    scrambled.append(_permuted(d, w2[:, j, k], w3[:, j, k], b, layout.take))
+            with jax.enable_x64(True):
+                if owen:
+                    # One uniform tail per point below b^-K32, hashed from the whole index.
+                    key = point.lo ^ take(w2[:, :, k_count])
+                    if not narrow:
+                        key = key ^ _mix32(point.hi)
+                    bits = _mix32(_mix32(key) ^ take(w3[:, :, k_count]))
+                    start = (bits.astype(jnp.float64) + 0.5) * 2.0 ** -32
+                else:
+                    # The tail below b^-K64 and, past the index's own digits, the permuted zeros
+                    # pi_k(0) = c_k: one constant per replicate, summed on the table (R,) in the
+                    # same float64 operations as per point, so both index widths agree bit for bit.
+                    start = (w1[:, j, k64].astype(jnp.float64) + 0.5) * 2.0 ** -32
+                    for k in reversed(range(k_count, k64)):
+                        start = ((w2[:, j, k] % _u32(b)).astype(jnp.int32).astype(jnp.float64) + start) * (1.0 / b)
+                    start = layout.take(start)
+                v = _horner(scrambled, start, b)
+                lanes.append(layout.full(_to_unit(v, dtype)))
         return (tuple(lanes),)
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):

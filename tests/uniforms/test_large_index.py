@@ -313,3 +313,19 @@ def test_replicated_sources_say_how_to_change_the_replicate_count(uniforms, name
     assert jax.eval_shape(lambda k: js.estimate(cos3, d, k, 1000, uniforms=source), jax.random.key(8)).n == 1000
     with pytest.raises(ValueError, match=r"Stratified\(replicates=\.\.\.\)"):
         U.uniform_block("stratified", key_of(3), 0, 8, 2, total=1000)
+
+
+@pytest.mark.parametrize("scramble", ["permutation", "owen"])
+def test_halton_points_agree_across_index_widths(scramble):
+    """Halton digits come from uint32 arithmetic below 2^32 and uint64 above: the same points
+    drawn through a 64-bit (two-word) offset equal the 32-bit ones, in both output dtypes."""
+    from jaxsample.uniforms.index import Index
+
+    source = U.Halton(replicates=3, scramble=scramble)
+    seed = seed_words(7)
+    for dtype in (jnp.float32, jnp.float64):
+        with jax.enable_x64(dtype == jnp.float64):
+            narrow = np.asarray(source.block(seed, 3000, 3 * 200, 6, dtype))
+            wide = np.asarray(jax.jit(lambda s, at: source.block(s, at, 3 * 200, 6, dtype))(
+                seed, Index(jnp.uint32(0), jnp.uint32(3000))))
+        np.testing.assert_array_equal(wide, narrow)

@@ -166,6 +166,28 @@ def test_scrambled_halton_keeps_the_digit_stratification(scramble):
             assert np.bincount((rep[:n, j] * n).astype(int), minlength=n).max() == 1, (j, b)
 
 
+def test_owen_halton_permutes_each_digit_by_its_prefix_and_permutation_halton_does_not():
+    """Base 3 (coordinate 2), points i = 3 d_1 + d_0 of one replicate, output digit 1 =
+    floor(9 y) mod 3. "permutation": pi_1(d_1) whatever d_0 (deterministic). "owen": pi_1 also
+    depends on d_0, so for some d_1 the three prefixes give different digits: all three affine
+    permutations coincide with probability 1/36 per key, so this fails for a correct Owen scramble
+    with probability 36^-4 < 1e-6 over the 4 keys."""
+    index = np.arange(9)
+    d0, d1 = index % 3, index // 3
+    nested = []
+    for _ in range(4):
+        for scramble in ("permutation", "owen"):
+            y = np.asarray(U.uniform_block(U.Halton(replicates=2, scramble=scramble), next(KEYS), 0, 18, 2))[0::2, 1]
+            digit1 = (np.floor(y * 9).astype(int)) % 3
+            assert sorted((np.floor(y * 3).astype(int))[d1 == 0].tolist()) == [0, 1, 2]
+            by_prefix = [len(set(digit1[d1 == v].tolist())) for v in range(3)]
+            if scramble == "permutation":
+                assert by_prefix == [1, 1, 1], by_prefix
+            else:
+                nested.append(max(by_prefix) > 1)
+    assert all(nested), nested
+
+
 # ------------------------------------------------------------------------------------------------
 # Latin hypercube
 # ------------------------------------------------------------------------------------------------
