@@ -276,7 +276,11 @@ def verdict_section(rows: list[dict], tiny: bool = False) -> list[str]:
             "whole budget). Strategies within 2σ of the fastest are named as tied with it; where one of them "
             "is only a bound or has an unknown error, as \"not told apart\" from it. Timing noise is not in "
             "these errors: the strategies of one integrand are timed in interleaved rounds (median of 5).\n",
-            convergence.headline_markdown(rows)]
+            convergence.headline_markdown(rows),
+            "Which point set the headline picks: the point set (`uniforms`) of the fastest strategy per "
+            "integrand at relative RMSE 1e-3 (every point set — random, stratified, Sobol' in its "
+            "scrambles, lattice, Halton, Latin hypercube — runs beside each sampler in the study):\n",
+            convergence.picks_markdown(rows)]
 
 
 def study_section(rows: list[dict], tiny: bool = False) -> list[str]:

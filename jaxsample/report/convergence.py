@@ -501,7 +501,7 @@ def headline_picks(rows: list[dict], target: float = 1e-3) -> list[dict]:
     """Which strategy, and so which point set, the headline names fastest for each integrand at
     `target` (the first of any tied; "" where none reaches it): records of integrand, strategy,
     point set ("uniforms") and kind."""
-    sets = {(r["integrand"], r["strategy"]): (r["uniforms"], r["kind"]) for r in rows}
+    sets = {(r["integrand"], r["strategy"]): (r.get("uniforms", ""), r["kind"]) for r in rows}
     out = []
     for v in verdict_rows(rows):
         if v["target"] != target:

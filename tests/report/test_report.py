@@ -93,6 +93,7 @@ def test_in_tiny_mode_the_top_says_smoke_test_and_no_verdicts_are_drawn():
     assert all(word not in study for word in ("slope ± se", "floor from n", "time to 0.01", "not told apart"))
     full = "\n".join(R.verdict_section(_rows(4.0 ** np.arange(1, 10)), tiny=False))
     assert "| integrand | target relative RMSE | fastest to reach it (kind) |" in full
+    assert "| hemi_cos3 | cosine (tied: uniform) | — | importance |" in full  # the pick and its point set
     path_rows = [{"path": "p", "ns_per_sample": 1.0, "ratio": 0.5, "target": "≤ 1.3×", "met": True, "note": ""}]
     assert "met" not in P.markdown_table(path_rows, verdicts=False) and "yes" not in P.markdown_table(path_rows,
                                                                                                    verdicts=False)
