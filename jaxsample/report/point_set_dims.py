@@ -117,12 +117,12 @@ def _both(u):
 
 
 def study_sizes(quick: bool = True, tiny: bool = False) -> tuple[list[int], int, int, int]:
-    """(ns, keys, n_time, timing repeats): quick n = 2^4..2^14 over 8 keys, timed at 2^16; full
+    """(ns, keys, n_time, timing repeats): quick n = 2^6..2^14 over 8 keys, timed at 2^16; full
     2^4..2^18 over 16 keys, timed at 2^16; tiny (tests) 2^4..2^10 over 4 keys, timed at 2^10."""
     if tiny:
         return [2**k for k in range(4, 11, 2)], 4, 2**10, 1
     if quick:
-        return [2**k for k in range(4, 15, 2)], 8, 2**16, 3
+        return [2**k for k in range(6, 15, 2)], 8, 2**16, 3
     return [2**k for k in range(4, 19, 2)], 16, 2**16, 5
 
 
@@ -195,8 +195,9 @@ QUICK_DIMS = (2, 4, 8)
 def study_dims(quick: bool = True) -> tuple[int, ...]:
     """The dimensions of a run: `DIMS` in full, `QUICK_DIMS` in --quick. The compile of the Halton
     and Latin hypercube programs grows with d and is most of the study's time (measured on a
-    shared 2-core machine: about 50 s for d = 2, 4, 8 together, 55 s for d = 16, 170 s for d = 32),
-    so --quick stops at d = 8 to stay near a minute."""
+    2-core machine shared with a benchmark, load 3.4: 81 s for --quick, d = 2, 4, 8 at n up to 2^14;
+    in the all-d quick run d = 16 took 55 s and d = 32 170 s; the full study 525 s), so --quick
+    stops at d = 8."""
     return DIMS if not quick else QUICK_DIMS
 
 
