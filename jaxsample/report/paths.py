@@ -2,7 +2,7 @@
 
 Run alone: `python -m jaxsample.report.paths [--quick]`; the report includes the same table. A speed
 figure for one shape of program is not a speed claim, so each row times a program users write:
-integrands written four ways, `sample()` into arrays, Sobol' and stratified points, rotated lobes,
+integrands written four ways, `sample()` into arrays, every point set (2, 3 and 8 dims), rotated lobes,
 mixtures, every sampler of the report's table, `scene.shade`, and the benchmarked ∫cos³ itself.
 
 Every ratio is taken in this one run, from medians of interleaved repeats (each group of programs
@@ -138,15 +138,27 @@ def sample_into_arrays(n, repeats):
     return rows
 
 
+def _point_sets():
+    """Every point set at its default settings and the scrambles a user can ask for, by name."""
+    from jaxsample import uniforms as U
+
+    return {"sobol": "sobol", "sobol-lms": U.Sobol(scramble="lms"), "sobol-padded": U.Sobol(padding=True),
+            "stratified": "stratified", "lattice": "lattice", "halton": "halton",
+            "halton-owen": U.Halton(scramble="owen"), "lhs": "lhs"}
+
+
 def quasi_random(n, repeats):
-    """Target 3: Sobol' and stratified against Philox in the same estimate (2-d and 3-d)."""
+    """Target 3 (and issue 26): every point set against Philox in the same estimate (2-d, 3-d, 8-d)."""
     cases = {"2-d cosine ∫cos³": (cos3, js.CosineHemisphere()),
-             "3-d box ∫|x|²": (lambda x: jnp.sum(x * x), js.UniformBox(jnp.zeros(3), jnp.ones(3)))}
+             "3-d box ∫|x|²": (lambda x: jnp.sum(x * x), js.UniformBox(jnp.zeros(3), jnp.ones(3))),
+             "8-d box ∫|x|²": (lambda x: jnp.sum(x * x), js.UniformBox(jnp.zeros(8), jnp.ones(8)))}
     rows = []
     for name, (f, s) in cases.items():
-        fns = {u: _estimate_fn(f, s, n, uniforms=u) for u in ("random", "sobol", "stratified")}
+        sets = {u: v for u, v in _point_sets().items() if not (u == "stratified" and "8-d" in name)}
+        fns = {"random": _estimate_fn(f, s, n, uniforms="random")}
+        fns.update({u: _estimate_fn(f, s, n, uniforms=v) for u, v in sets.items()})
         t = _times(fns, repeats)
-        for u in ("sobol", "stratified"):
+        for u in sets:
             rows.append(_row(f"{name}, uniforms={u!r}", t[u], n, t[u] / t["random"], "≤ 2× random", -2.0))
     return rows
 
@@ -260,7 +272,7 @@ def path_table(quick: bool = True, tiny: bool = False, progress=print) -> list[d
         n_est, n_arr, repeats = 1 << 24, 1 << 22, 7
     sections = [("integrand forms", lambda: integrand_forms(n_est, repeats)),
                 ("sample into arrays", lambda: sample_into_arrays(n_arr, repeats)),
-                ("Sobol' and stratified", lambda: quasi_random(n_est, repeats)),
+                ("point sets", lambda: quasi_random(n_est, repeats)),
                 ("Oriented and Mixture", lambda: composition(n_est, repeats)),
                 ("every sampler", lambda: every_sampler(n_est, repeats,
                                                         names=("PhongLobe(20)", "UniformDisk(concentric)") if tiny else None)),
