@@ -12,10 +12,13 @@ pi_k(d_k) for random permutations pi_k of {0 .. b-1} (Owen 1995, "Randomly permu
   uniformly random permutation, so every point is uniform and every pair of points has the joint
   law (hence the estimator's variance) of the uniformly random digit permutation.
 - scramble="owen": nested permutations: pi_k also depends on the digits d_0 .. d_(k-1) below it
-  (the prefix i mod b^k): its coefficients come from two rounds of a bijective 32-bit hash (the
-  "lowbias32" multiply-xorshift) of the prefix xor a Philox word of (replicate, coordinate, k),
-  the hashing approach of Burley 2020 for base 2, here per digit of base b. In base 2 it is
-  `owen_scramble`, the Laine–Karras hash of `sobol`.
+  (the prefix i mod b^k): its coefficients come from a bijective 32-bit hash h (the "lowbias32"
+  multiply-xorshift) of the prefix xor a Philox word of (replicate, coordinate, k), the hashing
+  approach of Burley 2020 for base 2, here per digit of base b. For b (b - 1) <= 2^13 (bases up
+  to 89) one hash gives both: t = floor(h b (b - 1) / 2^32) = c (b - 1) + (a - 1), a value drawn
+  as floor(h m / 2^32) having relative bias at most m / 2^32 per value (< 2e-6 per (c, a) pair);
+  larger bases hash h again with a second Philox word for a. In base 2 it is `owen_scramble`,
+  the Laine–Karras hash of `sobol`.
 
 Digits and precision. The output is `bits_to_unit` of a 2^-23 (float32) or 2^-32 (float64) cell,
 so only the K = ceil(bits / log2 b) most significant digit positions can move a point by a cell
@@ -28,7 +31,8 @@ index, (i div b^k) mod b, so XLA fuses every digit into its consumer), in uint64
 same values. The sum is exact in uint32 for the leading positions (b^m < 2^31) and finished in
 float64 (two roundings, 2^-52 relative), so each point is uniform on its output grid; the
 affine coefficients come from 32-bit words reduced mod b, a bias below b / 2^32 (< 2e-6 for the
-largest prime kept) in any digit's probabilities. Digit permutations of bases up to 5 are a
+largest prime kept) in any digit's probabilities. The affine maps' t = a d + c < b^2 is reduced
+mod b exactly by two uint32 multiplies and a shift (`_mod_square`, bases up to 251). Digit permutations of bases up to 5 are a
 chain of selects among the b values pi(0) .. pi(b - 1) computed per replicate. Base 2
 (coordinate 1) is exact bit arithmetic: rev32(i) xor a random word ("permutation"; the index's
 bits past 32 fall below 2^-32), Owen-scrambled van der Corput ("owen").
@@ -45,6 +49,7 @@ scramble: unscrambled, the large-prime coordinates are strongly correlated for s
 
 from __future__ import annotations
 
+import functools
 from typing import ClassVar
 
 import jax
@@ -125,7 +130,32 @@ def _permuted(d, c_table, a_table, base: int, take):
         for v in reversed(range(base - 1)):
             out = jnp.where(d == _u32(v), take((a * _u32(v) + c) % _u32(base)), out)
         return out
-    return (take(a) * d + take(c)) % _u32(base)
+    return _mod_square(take(a) * d + take(c), base)
+
+
+@functools.lru_cache(maxsize=None)
+def _square_magic(base: int):
+    """(s, M) with floor(t M / 2^s) = t div b for every t < b^2 and t M < 2^32, checked on every
+    such t; None where no shift works (bases above 251)."""
+    t = np.arange(base * base, dtype=np.uint64)
+    for shift in range(1, 33):
+        mul = -(-(1 << shift) // base)
+        if (base * base - 1) * mul >= 1 << 32:
+            return None
+        if np.array_equal((t * np.uint64(mul)) >> np.uint64(shift), t // np.uint64(base)):
+            return shift, mul
+    return None
+
+
+def _mod_square(t, base: int):
+    """t mod b for uint32 t < b^2 (an affine digit map a d + c): t - b floor(t M / 2^s), two uint32
+    multiplies and a shift (`_square_magic`), where the generic remainder by a constant needs a
+    32 x 32 -> 64-bit multiply-high; the generic remainder for bases with no such (s, M)."""
+    magic = _square_magic(base)
+    if magic is None:
+        return t % _u32(base)
+    shift, mul = magic
+    return t - ((t * _u32(mul)) >> _u32(shift)) * _u32(base)
 
 
 def _mix32(x):
@@ -142,6 +172,22 @@ def _below(h, m: int):
     """floor(h m / 2^32) for uint32 h: a value in [0, m), bias below m / 2^32 per value."""
     with jax.enable_x64(True):
         return ((h.astype(jnp.uint64) * jnp.uint64(m)) >> jnp.uint64(32)).astype(jnp.uint32)
+
+
+# Bases whose Owen coefficients (c, a) both come from one hash h: t = floor(h b (b - 1) / 2^32) =
+# c (b - 1) + (a - 1), relative bias at most b (b - 1) / 2^32 < 2e-6 per (c, a) pair.
+ONE_HASH_PAIRS = 1 << 13
+
+
+def _owen_coefficients(h, word, base: int):
+    """(c, a) of the affine digit permutation d -> (a d + c) mod b from the hash h of a digit's
+    prefix: c in [0, b), a in [1, b). For b (b - 1) <= ONE_HASH_PAIRS both are the mixed-radix
+    digits of t = floor(h b (b - 1) / 2^32): c = floor(h b / 2^32) and a - 1 = floor(r (b - 1) / 2^32)
+    with r = h b mod 2^32 (h b (b - 1) = c (b - 1) 2^32 + r (b - 1)). Larger bases hash again with
+    the per-replicate `word` for a, so each coefficient keeps a bias below b / 2^32."""
+    if base * (base - 1) <= ONE_HASH_PAIRS:
+        return _below(h, base), _u32(1) + _below(h * _u32(base), base - 1)
+    return _below(h, base), _u32(1) + _below(_mix32(h ^ word), base - 1)
 
 
 def _digits(point: Index, base: int, count: int):
@@ -299,10 +345,8 @@ class Halton(Source):
             for k, (d, (lo, hi)) in enumerate(zip(digits, prefixes)):
                 if owen:
                     key = lo ^ take(w2[:, :, k]) if hi is None else lo ^ take(w2[:, :, k]) ^ _mix32(hi)
-                    h1 = _mix32(key)
-                    h2 = _mix32(h1 ^ take(w3[:, :, k]))
-                    c, a = _below(h1, b), _u32(1) + _below(h2, b - 1)
-                    scrambled.append((a * d + c) % _u32(b))
+                    c, a = _owen_coefficients(_mix32(key), take(w3[:, :, k]), b)
+                    scrambled.append(_mod_square(a * d + c, b))
                 else:
                     scrambled.append(_permuted(d, w2[:, j, k], w3[:, j, k], b, layout.take))
             with jax.enable_x64(True):

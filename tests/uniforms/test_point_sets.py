@@ -170,8 +170,9 @@ def test_owen_halton_permutes_each_digit_by_its_prefix_and_permutation_halton_do
     """Base 3 (coordinate 2), points i = 3 d_1 + d_0 of one replicate, output digit 1 =
     floor(9 y) mod 3. "permutation": pi_1(d_1) whatever d_0 (deterministic). "owen": pi_1 also
     depends on d_0, so for some d_1 the three prefixes give different digits: all three affine
-    permutations coincide with probability 1/36 per key, so this fails for a correct Owen scramble
-    with probability 36^-4 < 1e-6 over the 4 keys."""
+    permutations coincide with probability 1/36 per key, so requiring nesting for some key fails
+    for a correct Owen scramble with probability 36^-4 < 1e-6 over the 4 keys (requiring it for
+    every key would fail with probability 1 - (35/36)^4 ~ 0.11)."""
     index = np.arange(9)
     d0, d1 = index % 3, index // 3
     nested = []
@@ -185,7 +186,7 @@ def test_owen_halton_permutes_each_digit_by_its_prefix_and_permutation_halton_do
                 assert by_prefix == [1, 1, 1], by_prefix
             else:
                 nested.append(max(by_prefix) > 1)
-    assert all(nested), nested
+    assert any(nested), nested
 
 
 # ------------------------------------------------------------------------------------------------
