@@ -11,14 +11,16 @@ variance: RMSE ~ n^-1.5 for smooth additive parts); otherwise the rate stays n^-
 smaller constant (Stein 1987; Owen 1992).
 
 Counter based. pi_(r,j)(p) is computed from p alone: a keyed bijection of the k-bit integers
-(2^k the power of two at or above m) by four rounds of x ^= key, x *= odd key, x ^= x >> ceil(k/2),
+(2^k the power of two at or above m) by two rounds of x ^= key, x *= odd key, x ^= x >> ceil(k/2),
 x += key, x *= odd key, x ^= x >> ceil(k/2), all mod 2^k (each step a bijection of [0, 2^k)), then cycle walking (Black & Rogaway
 2002; Kensler 2013, "Correlated multi-jittered sampling", uses the same scheme): apply it again
 until the value falls below m. Cycle walking restricts a bijection of [0, 2^k) to one of
 [0, m); since m > 2^(k-1), fewer than two steps are needed on average (a `lax.while_loop`, no
 step at all when m is a power of two). The keys are Philox words per (replicate, coordinate), the
-jitter one Philox word per (point, coordinate): point g coordinate j depends only on the key,
-j, g and m. The permutations are pseudo-random, not uniformly random over all m! orders: the
+jitter the 32-bit hash `_mix32` (lowbias32) of the permuted stratum xor another such word, a
+uniform 32-bit word per (replicate, coordinate, stratum), hence per point: point g coordinate j
+depends only on the key, j, g and m. (The stratum and the jitter's word are independent draws in
+distribution, the hash of distinct strata being distinct words.) The permutations are pseudo-random, not uniformly random over all m! orders: the
 tests check the strata, uniformity and independence across coordinates and replicates.
 
 Floats: in float64 every coordinate lies in its stratum. In float32, cell + jitter is kept below
@@ -38,8 +40,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .index import Index, as_index, index_range
-from .philox import _philox_words, _u32, bits_to_unit
+from .philox import _u32, bits_to_unit
+from .halton import _mix32
 from .sources import Source, _check_replicates
 from ._replicated import STREAM_LHS, Layout, replicate_words, stack_lanes
 
@@ -59,6 +61,13 @@ def _bijection(x, keys, bits: int):
         x = (x * ((mul >> _u32(16)) | _u32(1))) & mask
         x = x ^ (x >> shift)
     return x
+
+
+def _below_float(x):
+    """nextafter(x, 0) for positive finite floats: the bit pattern minus one (as nextafter(x, y)
+    for any y < x, in three vector operations)."""
+    bits = jax.lax.bitcast_convert_type(x, jnp.int32 if x.dtype == jnp.float32 else jnp.int64)
+    return jax.lax.bitcast_convert_type(bits - 1, x.dtype)
 
 
 def stratum_permutation(p, keys, m: int):
@@ -97,24 +106,18 @@ class LatinHypercube(Source):
     def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         m = self._per_replicate(total)
         layout = Layout(offset, count, self.replicates, aligned)
-        glob = index_range(as_index(offset, count), count)
-        glob = Index(None if glob.hi is None else glob.hi.reshape(layout.shape), glob.lo.reshape(layout.shape))
         words = [replicate_words(seed, self.replicates, dims, STREAM_LHS, w) for w in range(2)]
         top = np.nextafter(np.array(1.0, dtype), np.array(0.0, dtype))
         p = layout.full(layout.point.lo)
-        lanes, jitter_block = [], None
+        lanes = []
         for j in range(dims):
-            if j % 4 == 0:
-                jitter_block = _philox_words(seed, glob, STREAM_LHS, j // 4)
             keys = [(layout.take(words[0][0][:, j]), layout.take(words[0][1][:, j])),
-                    (layout.take(words[0][2][:, j]), layout.take(words[0][3][:, j])),
-                    (layout.take(words[1][0][:, j]), layout.take(words[1][1][:, j])),
-                    (layout.take(words[1][2][:, j]), layout.take(words[1][3][:, j]))]
+                    (layout.take(words[0][2][:, j]), layout.take(words[0][3][:, j]))]
             cell = stratum_permutation(p, keys, m)
-            jitter = bits_to_unit(jitter_block[j % 4], dtype)
+            jitter = bits_to_unit(_mix32(cell ^ layout.take(words[1][0][:, j])), dtype)
             # cell + jitter may round up to cell + 1 in float32 (cell above 2^(24 - 23) ...): kept below it.
             stratum = cell.astype(dtype)
-            within = jnp.minimum(stratum + jitter, jnp.nextafter(stratum + 1, stratum))
+            within = jnp.minimum(stratum + jitter, _below_float(stratum + 1))
             lanes.append(jnp.minimum(within / float(m), top))
         return (tuple(lanes),)
 
