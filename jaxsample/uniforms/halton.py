@@ -37,9 +37,11 @@ chain of selects among the b values pi(0) .. pi(b - 1) computed per replicate. B
 (coordinate 1) is exact bit arithmetic: rev32(i) xor a random word ("permutation"; the index's
 bits past 32 fall below 2^-32), Owen-scrambled van der Corput ("owen").
 
-Cost (benchmarks/point_sets.py, `estimate` over `UniformSphere`, 2 coordinates): about 3x
-`Random` per point for "permutation" (the base-3 coordinate needs 15 permuted digits at float32
-resolution, each a lookup and a multiply-add per lane), about 10x for "owen" (two hashes per digit).
+Cost (`estimate` of sum x^2 over `UniformBox`, n = 2^20, min of 9, shared loaded 2-core machine,
+2026-12-03): 3 dims about 2.8x `Random` per point for "permutation" (the base-3 coordinate needs
+15 permuted digits at float32 resolution, each a select chain and a multiply-add per lane) and
+8.6x for "owen" (one hash per digit, was 11x); 8 dims 5x and 13.5x (was 9x and 35x in the same
+conditions): the affine digits cost three uint32 multiplies each (map, quotient, Horner).
 
 Replicates: global index g is point g div R of replicate g mod R (the `Source` convention), each
 replicate with independent permutations, so the spread of the R replicate means is the standard
@@ -148,14 +150,24 @@ def _square_magic(base: int):
 
 
 def _mod_square(t, base: int):
-    """t mod b for uint32 t < b^2 (an affine digit map a d + c): t - b floor(t M / 2^s), two uint32
-    multiplies and a shift (`_square_magic`), where the generic remainder by a constant needs a
-    32 x 32 -> 64-bit multiply-high; the generic remainder for bases with no such (s, M)."""
+    """t mod b for uint32 t < b^2 (an affine digit map a d + c) as the pair (t, q), q = t div b =
+    floor(t M / 2^s) (`_square_magic`): the digit is t - q b, which `_horner` folds into its
+    multiply, (H - q) b + t, so a digit costs three uint32 multiplies with the map and the sum,
+    where the generic remainder by a constant needs a 32 x 32 -> 64-bit multiply-high. A plain
+    remainder for bases with no such (s, M)."""
     magic = _square_magic(base)
     if magic is None:
         return t % _u32(base)
     shift, mul = magic
-    return t - ((t * _u32(mul)) >> _u32(shift)) * _u32(base)
+    return t, (t * _u32(mul)) >> _u32(shift)
+
+
+def _digit_value(d, base: int):
+    """A digit as one uint32 array (`_mod_square`'s pair (t, q) is t - q b)."""
+    if isinstance(d, tuple):
+        t, q = d
+        return t - q * _u32(base)
+    return d
 
 
 def _mix32(x):
@@ -237,12 +249,16 @@ def _horner(digits, start, base: int):
     float64 from `start`, and v = (H + w) b^-m: two float64 roundings in all, and uint32
     arithmetic (which vectorizes at twice the float64 width) for the digits that matter most."""
     m = min(_exact_digits(base), len(digits))
-    high = jnp.zeros_like(digits[0])
+    high = jnp.zeros_like(_digit_value(digits[0], base))
     for d in digits[:m]:
-        high = high * _u32(base) + d
+        if isinstance(d, tuple):
+            t, q = d
+            high = (high - q) * _u32(base) + t
+        else:
+            high = high * _u32(base) + d
     with jax.enable_x64(True):
         w = start
-        for d in reversed(digits[m:]):
+        for d in reversed([_digit_value(d, base) for d in digits[m:]]):
             w = (d.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base)
         return (high.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base ** m)
 
