@@ -17,6 +17,12 @@ Measured 2026-12-03 after Halton's uint32 digits (a second session sharing the m
 sobol 11.7, sobol-lms 17.2, sobol-padded 8.5, sobol-lms-padded 15.4, lattice 8.6, halton 11.2,
 halton-owen 36.1, lhs 18.5 ns/point (ratios 1, 2.6, 3.9, 1.9, 3.5, 2.0, 2.5, 8.2, 4.2); halton was
 38x and halton-owen 50x before.
+Measured 2026-12-03 after Halton's one-hash Owen digits and uint32 t mod b, and LHS's hashed jitter
+with two bijection rounds (94466d8, e335088, 9057091; loaded shared machine): random 3.8, sobol
+10.9, sobol-lms 13.7, sobol-padded 8.8, sobol-lms-padded 14.6, lattice 8.0, halton 12.0,
+halton-owen 26.1, lhs 19.2 ns/point (ratios 1, 2.9, 3.6, 2.3, 3.9, 2.1, 3.2, 6.9, 5.1; lhs here
+was noisy: through `estimate` of sum x^2 over `UniformBox` the same hour it was 2.7x at 3 dims and
+1.9x at 8 dims, from 2.6x and 3.3x).
 """
 
 from __future__ import annotations
