@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-__all__ = ["computed_once"]
+__all__ = ["computed_once", "stored_once", "stored_once_p"]
 
 
 def _always(token) -> jax.Array:
@@ -73,3 +73,41 @@ def computed_once(values, token):
             if i is not None:
                 out[i] = half if half.dtype == values[i].dtype else lax.bitcast_convert_type(half, values[i].dtype)
     return out
+
+
+# ----------------------------------------------------------------------------------------------
+# stored_once: a marker for `lanes.lane_map`, the identity everywhere else
+# ----------------------------------------------------------------------------------------------
+#
+# A per-point function traced by `lane_map` can mark values that many outputs share (the warped
+# sample of an integrand with many values per point): `lane_map` passes their lanes through
+# `computed_once`, so each output's loop reads them instead of recomputing the generator and the
+# warp. Outside `lane_map` (plain JAX, `vmap`, autodiff) the primitive is the identity; its
+# derivative passes the tangents through unchanged (the marker is not on the tangent path).
+
+from jax.extend.core import Primitive  # noqa: E402
+from jax.interpreters import ad, batching, mlir  # noqa: E402
+
+stored_once_p = Primitive("jaxsample_stored_once")
+stored_once_p.multiple_results = True
+stored_once_p.def_impl(lambda *xs: list(xs))
+stored_once_p.def_abstract_eval(lambda *avals: list(avals))
+mlir.register_lowering(stored_once_p, lambda ctx, *xs: list(xs))
+batching.primitive_batchers[stored_once_p] = lambda args, dims: (stored_once_p.bind(*args), list(dims))
+
+
+def _stored_once_jvp(primals, tangents):
+    tangents = [ad.instantiate_zeros(t) for t in tangents]
+    return stored_once_p.bind(*primals), tangents
+
+
+ad.primitive_jvps[stored_once_p] = _stored_once_jvp
+
+
+def stored_once(tree):
+    """`tree` unchanged; inside `lane_map`, its per-point arrays are stored once per block
+    (see the note above). Leaves must be arrays."""
+    leaves, treedef = jax.tree_util.tree_flatten(tree)
+    if not leaves:
+        return tree
+    return jax.tree_util.tree_unflatten(treedef, stored_once_p.bind(*[jnp.asarray(x) for x in leaves]))

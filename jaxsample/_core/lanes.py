@@ -51,6 +51,8 @@ from jax import lax
 from jax.extend import core as jex_core
 from jax.extend.core import primitives as jex_primitives
 
+from .computed_once import computed_once, stored_once_p as _core_stored_once_p
+
 __all__ = ["lane_map", "LaneFallback", "MAX_LANES"]
 
 # Per-point values with more elements than this stay stacked (count, *S) arrays: unrolling a
@@ -504,7 +506,27 @@ _REDUCERS = _keyed({"reduce_sum": (lax.add, None), "reduce_max": (lax.max, _MAX_
                     "reduce_and": (lax.bitwise_and, None), "reduce_or": (lax.bitwise_or, None),
                     "reduce_xor": (lax.bitwise_xor, None)})
 
+def _stored_once(ev, eqn, inputs):
+    """`computed_once.stored_once`: the lanes of every marked per-point value stored once."""
+    lanes = [x for x in inputs if isinstance(x, _Lanes)]
+    flat = [ev.lane(c) for x in lanes for c in x.cells.reshape(-1)]
+    if not flat:
+        return list(inputs)
+    first = flat[0].reshape(-1)[0]
+    tok = lax.bitcast_convert_type(first, jnp.uint32 if first.dtype.itemsize == 4 else jnp.uint64)
+    stored = iter(computed_once(flat, tok))
+    out = []
+    for x in inputs:
+        if isinstance(x, _Lanes):
+            cells = _object_array([next(stored) for _ in range(x.cells.size)], x.cells.shape)
+            out.append(_Lanes(cells, x.dtype))
+        else:
+            out.append(x)
+    return out
+
+
 _RULES = {
+    _core_stored_once_p: _stored_once,
     **_keyed(dict.fromkeys(_ELEMENTWISE_NAMES, _elementwise)),
     **_keyed({"mulhi": _elementwise}, since=(0, 10, 2)),
     **_keyed({"broadcast_in_dim": _broadcast_in_dim, "reshape": _reshape, "squeeze": _squeeze,

@@ -251,6 +251,18 @@ def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
     return lane_map(point, lanes[0].shape)(tuple(lanes))
 
 
+# An integrand with more values per point than this has its uniforms stored once per chunk: XLA
+# computes each output in its own loop, and would re-run the generator in every one of them.
+MANY_OUTPUTS = 4
+
+
+def _uniforms_stored_once(groups, tok):
+    """The chunk's uniforms (every coordinate of every group) through `computed_once`."""
+    flat = [lane for lanes in groups for lane in lanes]
+    stored = iter(computed_once(flat, tok))
+    return tuple(tuple(next(stored) for _ in lanes) for lanes in groups)
+
+
 def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, size: int, out_shape, bins: int, *,
            total, aligned: int, diagnostics: bool = True) -> _Moments:
     """Moments of values_fn over the `size` points from global index `offset`: one step of every
@@ -261,6 +273,8 @@ def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, siz
     # A narrow stream hands the sources a bare uint32 offset: the program of a 32-bit counter.
     at = offset if offset.wide else offset.lo
     groups = source.lanes(seed, at, size, dims, dtype, total=total, aligned=aligned)
+    if math.prod(out_shape) > MANY_OUTPUTS:
+        groups = _uniforms_stored_once(groups, token(offset))
     # The g groups share each generator call: computed in one loop, stored once per chunk.
     values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], token(offset))
     return _chunk_moments(values, source.replicates, out_shape, bins, diagnostics)

@@ -11,7 +11,9 @@ from typing import Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
+from .._core.computed_once import stored_once
 from .._core.entry import compiled_entry
 from ..samplers.base import check_uniforms, checked
 from .._core.numerics import safe_div
@@ -73,6 +75,16 @@ def output_shape(f, sampler, dtype) -> tuple[int, ...]:
     return integrand_layout(f, sampler, dtype, "estimate").out_shape
 
 
+# An integrand with more values per point than this has its warped sample stored once per chunk.
+MANY_OUTPUTS = 4
+
+
+def _values_per_point(f, x) -> int:
+    """How many numbers f returns per point (every leaf's elements), from its abstract evaluation."""
+    out = jax.eval_shape(jax.vmap(f), x)
+    return sum(int(np.prod(leaf.shape[1:], dtype=np.int64)) for leaf in jax.tree_util.tree_leaves(out))
+
+
 def packed_values(f, sampler, u: jax.Array, mode: str, *, owner: str = "estimate", boundary: bool = True):
     """(Y packed by the integrand rule, its layout): Y_i = f(x_i)/p(x_i) for every component of
     f's value, as one real (count, *out_shape) array (f's own values for one real array).
@@ -88,6 +100,10 @@ def packed_values(f, sampler, u: jax.Array, mode: str, *, owner: str = "estimate
                          "boundary terms this estimator does not add; use estimate or estimate_grad")
     x, pdf = sampler.warp_with_pdf(u[:, :dims] if extra else u)
     x, pdf = _detach(mode, x, pdf)
+    if _values_per_point(f, x) > MANY_OUTPUTS:
+        # Many outputs: XLA computes each in its own loop; the warped sample is stored once so
+        # that none of them re-runs the generator and the warp (`computed_once.stored_once`).
+        x, pdf = stored_once((x, pdf))
     fx = jax.vmap(f)(x)
     layout = layout_of(fx, "integrand_values", lead=1)
     fx = layout.pack(fx, u.dtype)

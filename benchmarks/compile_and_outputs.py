@@ -1,0 +1,147 @@
+"""Compile time and run time of `estimate` against the same program written by hand (issue 25, target 4).
+
+    python benchmarks/compile_and_outputs.py [--log2n 20] [--repeats 3] [--only NAME,...]
+
+Programs (each written twice, in one process):
+- "jaxsample": `js.estimate(f, sampler, key, n).mean` under `jax.jit` (and `jax.grad` of it with
+  respect to a parameter of f);
+- "by hand": what a user writes without the library: `sampler.sample_with_pdf` on 2^16 points per
+  chunk, `jax.vmap(f)` over them, f / p summed, the chunks in `lax.map` over split keys.
+Integrands: a 3-term environment integrand (ω ↦ Σ_k c_k max(ω·a_k, 0)^3 over the cosine
+hemisphere), and projections of an environment onto real spherical harmonics of degree < L, for
+L = 2, 3, 4, 7 (4, 9, 16, 49 coefficients per direction; the SH by the standard recurrences, as
+polynomials in x, y, z), over the uniform sphere. Compile = `jit(...).lower(...).compile()`
+wall time, median of `repeats` fresh compiles (a new closure each time, so nothing is cached);
+run = median ns/sample of `repeats` runs after one warm-up. Ratios jaxsample / by hand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+
+import jaxsample as js
+
+CHUNK = 1 << 16
+
+
+def real_sh(w, degree_bound: int):
+    """Real spherical harmonics Y_lm(ω) for l < degree_bound, m = -l..l, as one (L^2,) vector:
+    associated Legendre functions by the standard three-term recurrences in z, and
+    (x + iy)^m = r^m e^{imφ} by complex multiplication, so every term is a polynomial in x, y, z
+    (no trigonometry, nothing singular at the poles). Normalization: orthonormal on S²."""
+    x, y, z = w[0], w[1], w[2]
+    L = degree_bound
+    # c_m + i s_m = (x + iy)^m
+    cs = [(jnp.ones_like(x), jnp.zeros_like(x))]
+    for m in range(1, L):
+        c, s = cs[-1]
+        cs.append((c * x - s * y, c * y + s * x))
+    # P[l][m] without the (1 - z^2)^(m/2) factor (carried by (x + iy)^m)
+    P = {}
+    for m in range(L):
+        P[(m, m)] = jnp.full_like(z, float(np.prod(np.arange(1, 2 * m, 2)) * (-1) ** m))
+        if m + 1 < L:
+            P[(m + 1, m)] = (2 * m + 1) * z * P[(m, m)]
+        for l in range(m + 2, L):
+            P[(l, m)] = ((2 * l - 1) * z * P[(l - 1, m)] - (l + m - 1) * P[(l - 2, m)]) / (l - m)
+    out = []
+    for l in range(L):
+        for m in range(-l, l + 1):
+            a = abs(m)
+            k = np.sqrt((2 * l + 1) / (4 * np.pi) * np.exp(np.sum(-np.log(np.arange(l - a + 1, l + a + 1)))))
+            if m == 0:
+                out.append(k * P[(l, 0)])
+            elif m > 0:
+                out.append(np.sqrt(2) * k * P[(l, a)] * cs[a][0])
+            else:
+                out.append(np.sqrt(2) * k * P[(l, a)] * cs[a][1])
+    return jnp.stack(out)
+
+
+AXES = jnp.array([[0.3, 0.2, 0.9327379], [-0.5, 0.1, 0.8602325], [0.0, -0.6, 0.8]], jnp.float32)
+
+
+def environment(w, scale):
+    """A smooth environment: three clamped cos³ lobes, `scale` times the first."""
+    lobes = jnp.maximum(AXES @ w, 0.0) ** 3
+    return scale * lobes[0] + 0.5 * lobes[1] + 0.25 * lobes[2]
+
+
+def cases():
+    out = {"environment (3 terms)": (lambda w, s: environment(w, s), js.CosineHemisphere())}
+    for L in (2, 3, 4, 7):
+        out[f"SH projection L={L} ({L * L} outputs)"] = (
+            lambda w, s, L=L: real_sh(w, L) * environment(w, s), js.UniformSphere())
+    return out
+
+
+def library_program(f, sampler, n):
+    return lambda s, key: jnp.sum(js.estimate(lambda w: f(w, s), sampler, key, n).mean)
+
+
+def hand_program(f, sampler, n):
+    def run(s, key):
+        def one(k):
+            x, p = sampler.sample_with_pdf(k, (CHUNK,))
+            y = jax.vmap(lambda w: f(w, s))(x)
+            return jnp.sum(y / p.reshape((-1,) + (1,) * (y.ndim - 1)), axis=0)
+        sums = lax.map(one, jax.random.split(key, n // CHUNK))
+        return jnp.sum(jnp.sum(sums, axis=0) / n)
+    return run
+
+
+def compile_seconds(make, grad: bool, repeats: int):
+    times = []
+    for r in range(repeats):
+        fn = make()
+        fn = jax.grad(fn) if grad else fn
+        start = time.perf_counter()
+        jax.jit(fn).lower(jnp.float32(1.0), jax.random.key(r)).compile()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def run_ns(fns: dict, n: int, repeats: int) -> dict:
+    compiled = {name: jax.jit(fn) for name, fn in fns.items()}
+    for name, fn in compiled.items():
+        jax.block_until_ready(fn(jnp.float32(1.0), jax.random.key(0)))
+    times = {name: [] for name in fns}
+    for r in range(repeats):  # interleaved rounds
+        for name, fn in compiled.items():
+            start = time.perf_counter()
+            jax.block_until_ready(fn(jnp.float32(1.0), jax.random.key(r + 1)))
+            times[name].append(time.perf_counter() - start)
+    return {name: float(np.median(t)) / n * 1e9 for name, t in times.items()}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--log2n", type=int, default=20)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--only", default=None, help="comma-separated substrings of the case names")
+    args = parser.parse_args()
+    n = 1 << args.log2n
+    print(f"n = 2^{args.log2n}, medians of {args.repeats}; {jax.devices()[0].platform}, jax {jax.__version__}\n")
+    print("| program | compile: jaxsample / by hand | grad compile: jaxsample / by hand | run ns/sample: jaxsample / by hand "
+          "| run speed, by hand ÷ jaxsample |")
+    print("|---|---|---|---|---|")
+    for name, (f, sampler) in cases().items():
+        if args.only and not any(part in name for part in args.only.split(",")):
+            continue
+        lib = lambda: library_program(f, sampler, n)
+        hand = lambda: hand_program(f, sampler, n)
+        c = [compile_seconds(m, False, args.repeats) for m in (lib, hand)]
+        g = [compile_seconds(m, True, args.repeats) for m in (lib, hand)]
+        t = run_ns({"lib": lib(), "hand": hand()}, n, args.repeats)
+        print(f"| {name} | {c[0]:.2f} s / {c[1]:.2f} s = {c[0] / c[1]:.2f}x | {g[0]:.2f} s / {g[1]:.2f} s = "
+              f"{g[0] / g[1]:.2f}x | {t['lib']:.1f} / {t['hand']:.1f} | {t['hand'] / t['lib']:.2f}x |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
