@@ -31,8 +31,9 @@ index, (i div b^k) mod b, so XLA fuses every digit into its consumer), in uint64
 same values. The sum is exact in uint32 for the leading positions (b^m < 2^31) and finished in
 float64 (two roundings, 2^-52 relative), so each point is uniform on its output grid; the
 affine coefficients come from 32-bit words reduced mod b, a bias below b / 2^32 (< 2e-6 for the
-largest prime kept) in any digit's probabilities. The affine maps' t = a d + c < b^2 is reduced
-mod b exactly by two uint32 multiplies and a shift (`_mod_square`, bases up to 251). Digit permutations of bases up to 5 are a
+largest prime kept) in any digit's probabilities. The affine maps' t = a d + c < b^2 is divided
+by b exactly with one uint32 multiply and a shift (q = t div b, `_mod_square`, bases up to 251),
+and the digit t - q b folded into the sum's multiply. Digit permutations of bases up to 5 are a
 chain of selects among the b values pi(0) .. pi(b - 1) computed per replicate. Base 2
 (coordinate 1) is exact bit arithmetic: rev32(i) xor a random word ("permutation"; the index's
 bits past 32 fall below 2^-32), Owen-scrambled van der Corput ("owen").
