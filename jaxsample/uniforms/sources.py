@@ -453,9 +453,40 @@ def _grid_words(seed, replicate, column, stream: int, high=0):
 
 def _xor_over_row_bits(start, generator, per: int, bits: int) -> jax.Array:
     """start xor (xor of generator[..., k] over the bits k < bits of the row index j), on
-    (per, R) lanes: the low-index part of a digital net's point, m0 xor j."""
-    row = jnp.arange(per, dtype=jnp.uint32)[:, None]
-    value = jnp.broadcast_to(start, (per,) + start.shape[1:])
+    (per, R) lanes: the low-index part of a digital net's point, m0 xor j.
+
+    Per lane this is one xor of two small per-replicate tables, not a loop over the bits of j.
+    Xor is linear, so with j = j_hi 2^h + j_lo (h = ceil(bits / 2)) the value splits as
+    high[j_hi] xor low[j_lo]: high[a] = start xor (the xor of generator[..., h + k] over the bits
+    k of a) and low[b] = the xor of generator[..., k] over the bits k < h of b, tables of
+    2^(bits - h) and 2^h rows by R (for an estimator chunk of 2^16 points per replicate, 256 x R
+    words each). Laid out as (2^(bits - h), 2^h, R) the lanes are a broadcast xor of the two
+    (no gather); flattened in C order to (2^bits, R) they are rows j of the same value, bit for
+    bit (xor is associative). This is what makes LMS cheap (Matoušek 1998: the scramble is linear
+    over GF(2), so L P(m0 xor j) = L P(m0) xor the xor of L V_k over the bits of j; see
+    `_lms_lanes`): about one xor per coordinate, cheaper than the Owen path's hash."""
+    start = jnp.asarray(start)
+    tail = start.shape[1:]
+    if bits <= 1:
+        row = jnp.arange(per, dtype=jnp.uint32)[:, None]
+        value = jnp.broadcast_to(start, (per,) + tail)
+        for k in range(bits):
+            value = value ^ ((_u32(0) - ((row >> _u32(k)) & _u32(1))) & generator[..., k])
+        return value
+    low_bits = (bits + 1) // 2
+    high = _xor_table(start, generator[..., low_bits:], bits - low_bits)            # (2^(bits-h), *tail)
+    low = _xor_table(jnp.zeros_like(start), generator[..., :low_bits], low_bits)    # (2^h, *tail)
+    # Materialized once per chunk (small): fused into the lanes' loop they would be recomputed
+    # per lane.
+    high, low = jax.lax.optimization_barrier((high, low))
+    value = high[:, None] ^ low[None, :]                                             # (2^(bits-h), 2^h, *tail)
+    return value.reshape((1 << bits,) + tail)[:per]
+
+
+def _xor_table(start, generator, bits: int) -> jax.Array:
+    """(2^bits, *start.shape[1:]): row a = start xor (xor of generator[..., k] over the bits k of a)."""
+    row = jnp.arange(1 << bits, dtype=jnp.uint32).reshape((1 << bits,) + (1,) * (start.ndim - 1))
+    value = jnp.broadcast_to(start, (1 << bits,) + start.shape[1:])
     for k in range(bits):
         value = value ^ ((_u32(0) - ((row >> _u32(k)) & _u32(1))) & generator[..., k])
     return value
