@@ -201,3 +201,17 @@ def test_variants_in_estimators_and_their_parameters():
         U.Sobol(4, padding=1)
     with pytest.raises(ValueError, match=r"'dims' must be in \[1, 1024\]"):
         U.uniform_block(U.Sobol(4), next(KEYS), 0, 8, 1025, total=8)
+
+
+@pytest.mark.parametrize("name", ["lms", "lms-padded"])
+def test_lms_lanes_split_tables_equal_the_per_point_scramble(name):
+    """The lanes' high[j_hi] xor low[j_lo] split (odd bit counts, a per that is not a power of
+    two, a 64-bit offset) gives the points of the per-point L P(i) + e of `block`."""
+    source = U.Sobol(3, **VARIANTS[name])
+    seed = U.seed_from_key(next(KEYS))
+    for per, dims, offset in ((5, 2, 0), (100, 3, 3 << 7), (1000, 5, (3 << 40) + (3 << 10))):
+        count = per * 3
+        block = np.asarray(source.block(seed, offset, count, dims))
+        lanes = source.lanes(seed, offset, count, dims, aligned=3 << (per - 1).bit_length())
+        assert lanes[0][0].shape == (per, 3)
+        np.testing.assert_array_equal(block, np.stack([c.reshape(-1) for c in lanes[0]], -1))
