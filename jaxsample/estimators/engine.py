@@ -253,7 +253,7 @@ def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
 
 # An integrand with more values per point than this has its uniforms stored once per chunk: XLA
 # computes each output in its own loop, and would re-run the generator in every one of them.
-MANY_OUTPUTS = 4
+MANY_OUTPUTS = 1
 
 
 def _uniforms_stored_once(groups, tok):
