@@ -251,8 +251,9 @@ def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
     return lane_map(point, lanes[0].shape)(tuple(lanes))
 
 
-# An integrand with more values per point than this has its uniforms stored once per chunk: XLA
-# computes each output in its own loop, and would re-run the generator in every one of them.
+# An integrand with more values per point than this has its uniforms stored once per chunk (and
+# `plain.packed_values` its warped sample): XLA computes each output in its own loop, and would
+# re-run the generator and the warp in every one of them.
 MANY_OUTPUTS = 1
 
 
