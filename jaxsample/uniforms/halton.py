@@ -38,11 +38,20 @@ chain of selects among the b values pi(0) .. pi(b - 1) computed per replicate. B
 (coordinate 1) is exact bit arithmetic: rev32(i) xor a random word ("permutation"; the index's
 bits past 32 fall below 2^-32), Owen-scrambled van der Corput ("owen").
 
-Cost (`estimate` of sum x^2 over `UniformBox`, n = 2^20, min of 9, shared loaded 2-core machine,
-2026-12-03): 3 dims about 2.8x `Random` per point for "permutation" (the base-3 coordinate needs
-15 permuted digits at float32 resolution, each a select chain and a multiply-add per lane) and
-8.6x for "owen" (one hash per digit, was 11x); 8 dims 5x and 13.5x (was 9x and 35x in the same
-conditions): the affine digits cost three uint32 multiplies each (map, quotient, Horner).
+Runs of digits. The permutation scramble sums the K positions in runs of m digits (b^m <= 1024,
+`_digit_groups`): a run of a point is one integer e < b^m, and its permuted value
+sum_j pi_j(e_j) b^(m-1-j) is read from a table of every replicate's permuted run (b^m rows of R,
+built per call) where the table is small beside the lanes it serves (`_tabled`), so a lane costs a
+row read and a multiply-add per run instead of a permutation and a multiply-add per digit; small
+calls permute each lane's digits to the same integer, so every call gives the same points. Owen's
+nested permutations depend on the whole prefix, so only the leading run (whose prefixes are its
+own digits) can be a table; the positions after it are hashed per lane.
+
+Cost (`python -m jaxsample.report.paths --quick`, the "Point sets" rows: `estimate` of a 2-d
+cosine integral and of sum x^2 over a 3-d and an 8-d `UniformBox`, n = 2^22, medians of 7
+interleaved runs, quiet 2-core CPU, 2026-12-03): "permutation" 0.95x, 1.11x and 1.39x `Random`
+per point (was 1.6x, 2.1x and 3.5x digit by digit); "owen" 3.3x, 4.8x and 6.4x (was 4.1x, 5.5x
+and 7.7x): a 32-bit hash and two multiply-highs per digit after the leading run.
 
 Replicates: global index g is point g div R of replicate g mod R (the `Source` convention), each
 replicate with independent permutations, so the spread of the R replicate means is the standard
@@ -242,16 +251,19 @@ def _exact_digits(base: int) -> int:
     return m
 
 
-def _horner(digits, start, base: int):
+def _horner(digits, start, base: int, lead=None):
     """sum_k digit_k b^-(k+1) + start b^-K (digits lowest position first, K of them) in float64.
 
     The m most significant positions are summed exactly as the integer H = d_0 b^(m-1) + ... +
     d_(m-1) by Horner's rule in uint32 (b^m < 2^32), the positions below them by Horner's rule in
     float64 from `start`, and v = (H + w) b^-m: two float64 roundings in all, and uint32
-    arithmetic (which vectorizes at twice the float64 width) for the digits that matter most."""
-    m = min(_exact_digits(base), len(digits))
-    high = jnp.zeros_like(_digit_value(digits[0], base))
-    for d in digits[:m]:
+    arithmetic (which vectorizes at twice the float64 width) for the digits that matter most.
+    `lead` = (L, l): the first l positions given as their integer L = d_0 b^(l-1) + ... + d_(l-1)
+    (l <= m), `digits` then the positions after them: the same H, so the same value."""
+    value, done = lead if lead is not None else (None, 0)
+    m = min(_exact_digits(base), done + len(digits))
+    high = value if value is not None else jnp.zeros_like(_digit_value(digits[0], base))
+    for d in digits[:m - done]:
         if isinstance(d, tuple):
             t, q = d
             high = (high - q) * _u32(base) + t
@@ -259,9 +271,127 @@ def _horner(digits, start, base: int):
             high = high * _u32(base) + d
     with jax.enable_x64(True):
         w = start
-        for d in reversed([_digit_value(d, base) for d in digits[m:]]):
+        for d in reversed([_digit_value(d, base) for d in digits[m - done:]]):
             w = (d.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base)
         return (high.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base ** m)
+
+
+# The permutation scramble sums the K32 digit positions in runs of m (the most with b^m <= RUN_ROWS):
+# one exact integer per run, the same runs whichever way a run's value is found (so every path
+# rounds alike). A run's value is read from a table of every replicate's permuted run (b^m rows of
+# R) when the table costs at most TABLE_SHARE of the lanes it serves and TABLE_ENTRIES in all;
+# otherwise each lane permutes the run's digits itself.
+RUN_ROWS = 1024
+TABLE_SHARE = 2
+TABLE_ENTRIES = 1 << 15
+
+
+def _digit_groups(base: int, count: int):
+    """(first position, length) of the runs of m digits (m the most with b^m <= RUN_ROWS, at least
+    1) that cover positions 0 .. count - 1, most significant first."""
+    m = 1
+    while base ** (m + 1) <= RUN_ROWS:
+        m += 1
+    return [(s, min(m, count - s)) for s in range(0, count, m)]
+
+
+def _group_table(c_words, a_words, first: int, size: int, base: int):
+    """(b^size, R) uint32: row e holds, per replicate, the permuted run sum_j pi_(first+j)(e_j)
+    b^(size-1-j), e_j = (e div b^j) mod b the run's digits (lowest position first)."""
+    e = jnp.arange(base ** size, dtype=jnp.uint32)[:, None]
+    table = jnp.zeros((base ** size, c_words.shape[0]), jnp.uint32)
+    for j in range(size):
+        digit = (e // _u32(base ** j)) % _u32(base)
+        pi = _permuted(digit, c_words[:, first + j], a_words[:, first + j], base, lambda t: t[None, :])
+        table = table * _u32(base) + _digit_value(pi, base)
+    return table
+
+
+def _owen_table(w2, w3, size: int, base: int):
+    """(b^size, R) uint32: row e holds, per replicate, the Owen-scrambled leading run
+    sum_j pi_j(e_j) b^(size-1-j), pi_j's coefficients hashed from the prefix e mod b^j as in
+    `Halton.lanes` (the leading run's prefixes are the run's own digits)."""
+    e = jnp.arange(base ** size, dtype=jnp.uint32)[:, None]
+    table = jnp.zeros((base ** size, w2.shape[0]), jnp.uint32)
+    for j in range(size):
+        digit = (e // _u32(base ** j)) % _u32(base)
+        prefix = e % _u32(base ** j) if j else jnp.zeros_like(e)
+        c, a = _owen_coefficients(_mix32(prefix ^ w2[None, :, j]), w3[None, :, j], base)
+        table = table * _u32(base) + _digit_value(_mod_square(a * digit + c, base), base)
+    return table
+
+
+def _tabled(base: int, size: int, layout: Layout) -> bool:
+    """Whether a run's table (b^size rows of R) is cheap beside the lanes it serves."""
+    entries = base ** size * layout.replicates
+    return entries * TABLE_SHARE <= int(np.prod(layout.shape)) and entries <= TABLE_ENTRIES
+
+
+def _read_table(table, e, layout: Layout):
+    """Each lane's entry of a (rows, R) run table at its point's run integer e and its replicate."""
+    if layout.rows:
+        return jnp.take(table, e[:, 0], axis=0, mode="clip")
+    flat = e * _u32(layout.replicates) + layout.replicate.astype(jnp.uint32)
+    return jnp.take(table.reshape(-1), flat, mode="clip")
+
+
+def _group_indices(point: Index, groups, base: int):
+    """Per point, each run's digits as one integer e = sum_j d_(first+j) b^j (uint32, < b^size): a
+    division and a remainder of a narrow index, the uint64 digits combined for a wide one."""
+    if point.hi is None:
+        i = point.lo
+        return [(i // _u32(base ** first) if first else i) % _u32(base ** size) for first, size in groups]
+    digits, _ = _digits(point, base, groups[-1][0] + groups[-1][1])
+    out = []
+    for first, size in groups:
+        e = digits[first + size - 1]
+        for d in reversed(digits[first:first + size - 1]):
+            e = e * _u32(base) + d
+        out.append(e)
+    return out
+
+
+def _permuted_sum(point: Index, layout: Layout, w1, w2, w3, base: int, bits: int):
+    """The permutation-scrambled radical inverse of each lane's point (float64 in [0, 1]) from the
+    per-replicate words (R, K + 1) of one coordinate.
+
+    Positions 0 .. K32 - 1 (K32 = `_digit_count32(b, bits)`) go in runs of m digits
+    (`_digit_groups`), each run one integer below b^m. Where it is cheap beside the lanes
+    (`_tabled`), a table of every replicate's permuted run (`_group_table`, b^m rows, built per
+    call) is read at the point's run integer, so a lane costs one table read and one multiply-add
+    per run instead of a permutation and a multiply-add per digit; otherwise the lane permutes the
+    run's digits itself, to the same integer. The runs inside the leading `_exact_digits`
+    positions are summed exactly in uint32 (as `_horner` does digit by digit), the others by
+    Horner's rule in float64 from the tail: the positions up to K64 and the tail word, one
+    constant per replicate summed on the table (R,)."""
+    k_count, k64 = _digit_count32(base, bits), _digit_count(base)
+    exact = _exact_digits(base)
+    with jax.enable_x64(True):
+        start = (w1[:, k64].astype(jnp.float64) + 0.5) * 2.0 ** -32
+        for k in reversed(range(k_count, k64)):
+            start = ((w2[:, k] % _u32(base)).astype(jnp.int32).astype(jnp.float64) + start) * (1.0 / base)
+        groups = _digit_groups(base, k_count)
+        rows = []
+        for (first, size), e in zip(groups, _group_indices(point, groups, base)):
+            if _tabled(base, size, layout):
+                rows.append(_read_table(_group_table(w2, w3, first, size, base), e, layout))
+                continue
+            row = jnp.zeros_like(layout.take(w2[:, 0]) + e)
+            for j in range(size):
+                digit = (e // _u32(base ** j)) % _u32(base) if j else e % _u32(base)
+                pi = _permuted(digit, w2[:, first + j], w3[:, first + j], base, layout.take)
+                row = row * _u32(base) + _digit_value(pi, base)
+            rows.append(row)
+        # The leading runs inside the exact positions (at least the first: b^m <= RUN_ROWS < 2^31).
+        lead = sum(first + size <= exact for first, size in groups)
+        high = rows[0]
+        for (_, size), row in zip(groups[1:lead], rows[1:lead]):
+            high = high * _u32(base ** size) + row
+        w = layout.take(start)
+        for (_, size), row in reversed(list(zip(groups[lead:], rows[lead:]))):
+            w = (row.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base ** size)
+        done = groups[lead - 1][0] + groups[lead - 1][1]
+        return (high.astype(jnp.int32).astype(jnp.float64) + w) * (1.0 / base ** done)
 
 
 def _index64(point: Index):
@@ -355,35 +485,34 @@ class Halton(Source):
                         else _reverse_bits(point.lo) ^ take(w0[:, :, 0]))
                 lanes.append(bits_to_unit(layout.full(word), dtype))
                 continue
-            k64 = _digit_count(b)
             k_count = _digit_count32(b, _output_bits(dtype))
+            if not owen:
+                with jax.enable_x64(True):
+                    v = _permuted_sum(point, layout, w1[:, j], w2[:, j], w3[:, j], b, _output_bits(dtype))
+                    lanes.append(layout.full(_to_unit(v, dtype)))
+                continue
             digits, prefixes = _digits(point, b, k_count)
+            # The leading run of digits from a table where that is cheap (its prefixes lie in the run).
+            (_, size), = _digit_groups(b, k_count)[:1]
+            lead = None
+            if _tabled(b, size, layout):
+                (e,) = _group_indices(point, [(0, size)], b)
+                lead = (_read_table(_owen_table(w2[:, j], w3[:, j], size, b), e, layout), size)
             scrambled = []
             for k, (d, (lo, hi)) in enumerate(zip(digits, prefixes)):
-                if owen:
-                    key = lo ^ take(w2[:, :, k]) if hi is None else lo ^ take(w2[:, :, k]) ^ _mix32(hi)
-                    c, a = _owen_coefficients(_mix32(key), take(w3[:, :, k]), b)
-                    scrambled.append(_mod_square(a * d + c, b))
-                else:
-                    scrambled.append(_permuted(d, w2[:, j, k], w3[:, j, k], b, layout.take))
+                if lead is not None and k < size:
+                    continue
+                key = lo ^ take(w2[:, :, k]) if hi is None else lo ^ take(w2[:, :, k]) ^ _mix32(hi)
+                c, a = _owen_coefficients(_mix32(key), take(w3[:, :, k]), b)
+                scrambled.append(_mod_square(a * d + c, b))
             with jax.enable_x64(True):
-                if owen:
-                    # One uniform tail per point below b^-K32, hashed from the whole index.
-                    key = point.lo ^ take(w2[:, :, k_count])
-                    if not narrow:
-                        key = key ^ _mix32(point.hi)
-                    bits = _mix32(_mix32(key) ^ take(w3[:, :, k_count]))
-                    start = (bits.astype(jnp.float64) + 0.5) * 2.0 ** -32
-                else:
-                    # The tail below b^-K64 and, past the index's own digits, the permuted zeros
-                    # pi_k(0) = c_k: one constant per replicate, summed on the table (R,) in the
-                    # same float64 operations as per point, so both index widths agree bit for bit.
-                    start = (w1[:, j, k64].astype(jnp.float64) + 0.5) * 2.0 ** -32
-                    for k in reversed(range(k_count, k64)):
-                        start = ((w2[:, j, k] % _u32(b)).astype(jnp.int32).astype(jnp.float64) + start) * (1.0 / b)
-                    start = layout.take(start)
-                v = _horner(scrambled, start, b)
-                lanes.append(layout.full(_to_unit(v, dtype)))
+                # One uniform tail per point below b^-K32, hashed from the whole index.
+                key = point.lo ^ take(w2[:, :, k_count])
+                if not narrow:
+                    key = key ^ _mix32(point.hi)
+                bits = _mix32(_mix32(key) ^ take(w3[:, :, k_count]))
+                start = (bits.astype(jnp.float64) + 0.5) * 2.0 ** -32
+                lanes.append(layout.full(_to_unit(_horner(scrambled, start, b, lead), dtype)))
         return (tuple(lanes),)
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):

@@ -166,6 +166,33 @@ def test_scrambled_halton_keeps_the_digit_stratification(scramble):
             assert np.bincount((rep[:n, j] * n).astype(int), minlength=n).max() == 1, (j, b)
 
 
+@pytest.mark.parametrize("scramble", ["permutation", "owen"])
+def test_halton_run_tables_give_the_points_each_lane_permutes_itself(scramble):
+    """A large call (2^14 + 2 points) reads each digit run's permuted value from a per-replicate
+    table (Owen: the leading run's); windows of 64 points are too small for tables, and each lane
+    permutes its digits. Deterministic: both give the same points bit for bit, in both dtypes, in
+    the row layout (offset 0) and the one-lane-a-point layout (odd offset 1, the table read at row
+    e and the lane's replicate). And the tabled float64 points keep the b-adic stratification of
+    two runs of b^k <= 243 points of one replicate in each of 12 coordinates: a point within one
+    2^-32 output cell of an interval's edge could cross it, FFR below 24 * 243^2 * 2^-32 ~ 3e-4
+    for Owen's random tail (the permutation scramble is fixed by the key)."""
+    source, dims, count = U.Halton(replicates=2, scramble=scramble), 12, (1 << 14) + 2
+    key = next(KEYS)
+    for dtype in (jnp.float32, jnp.float64):
+        with jax.enable_x64(dtype == jnp.float64):
+            block = lambda offset, n: np.asarray(U.uniform_block(source, jax.random.clone(key), offset, n, dims,
+                                                                 dtype=dtype))
+            big = block(0, count)
+            assert np.array_equal(block(1, count - 2), big[1:count - 1]), dtype
+            for offset in (0, 64 * 37, 8192, count - 64):
+                assert np.array_equal(block(offset, 64), big[offset:offset + 64]), (dtype, offset)
+    rep = big[1::2]
+    for j, b in enumerate(int(p) for p in U.halton_primes(dims)):
+        n = b ** int(math.log(243) // math.log(b))
+        for start in (0, (len(rep) // n - 1) * n):
+            assert np.bincount((rep[start:start + n, j] * n).astype(int), minlength=n).max() == 1, (j, b)
+
+
 def test_owen_halton_permutes_each_digit_by_its_prefix_and_permutation_halton_does_not():
     """Base 3 (coordinate 2), points i = 3 d_1 + d_0 of one replicate, output digit 1 =
     floor(9 y) mod 3. "permutation": pi_1(d_1) whatever d_0 (deterministic). "owen": pi_1 also
