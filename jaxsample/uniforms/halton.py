@@ -47,9 +47,9 @@ calls permute each lane's digits to the same integer, so every call gives the sa
 nested permutations depend on the whole prefix, so only the leading run (whose prefixes are its
 own digits) can be a table; the positions after it are hashed per lane.
 
-Cost (`python -m jaxsample.report.paths --quick`, the "Point sets" rows: `estimate` of a 2-d
-cosine integral and of sum x^2 over a 3-d and an 8-d `UniformBox`, n = 2^22, medians of 7
-interleaved runs, quiet 2-core CPU, 2026-12-03): "permutation" 0.95x, 1.11x and 1.39x `Random`
+Cost (`jaxsample.report.paths.quasi_random(2**22, 7)`, the "point sets" rows of
+`python -m jaxsample.report.paths`: `estimate` of a 2-d cosine integral and of sum x^2 over a 3-d
+and an 8-d `UniformBox`, medians of 7 interleaved runs, quiet 2-core CPU, 2026-12-03): "permutation" 0.95x, 1.11x and 1.39x `Random`
 per point (was 1.6x, 2.1x and 3.5x digit by digit); "owen" 3.3x, 4.8x and 6.4x (was 4.1x, 5.5x
 and 7.7x): a 32-bit hash and two multiply-highs per digit after the leading run.
 
