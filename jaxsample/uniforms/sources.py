@@ -168,9 +168,15 @@ class Stratified(Source):
         """The same points as `block`, g = 4 // dims per Philox block of jitter (see
         `Source.lanes`), so that the estimators compute each block once."""
         per_replicate = self._per_replicate(total)
+        if dims > 4:
+            # One Philox block per point and group of four coordinates, as `Random` (measured:
+            # 14x Random at 5-d through the generic path's (count, dims) block, 1.1x here).
+            index = _index_words(offset, count)
+            words = [w for j in range(-(-dims // 4)) for w in _philox_words(seed, index, _STREAM_JITTER, j)]
+            return (self._place([bits_to_unit(w, dtype) for w in words[:dims]], index, per_replicate, dtype),)
         g = _samples_per_block(dims)
         start = as_index(offset, count)
-        if dims > 4 or count % g or _alignment(aligned) % g or self.replicates % g or start.wide:
+        if count % g or _alignment(aligned) % g or self.replicates % g or start.wide:
             # (A window past 2^32 takes the general path: `block` handles two-word indices.)
             return super().lanes(seed, offset, count, dims, dtype, total, aligned)
         offset = start.lo
@@ -389,11 +395,11 @@ class Sobol(Source):
 
     # ---- padding=True: a shuffled, scrambled 2-D Sobol' per dimension pair -----------------------
 
-    def _padded_words(self, seed, replicate, pairs: int, high):
-        """Philox (r, k, STREAM_PADDED_SHIFT, high) per replicate r and pair k: the shuffle and
-        coordinate seeds ("owen", words 0-2) or the two digital shifts ("lms", words 0-1) of the
-        pair's run of 2^32 points whose high index word is `high`."""
-        return _grid_words(seed, replicate, jnp.arange(pairs, dtype=jnp.uint32), STREAM_PADDED_SHIFT, high)
+    def _padded_words(self, seed, replicate, pair, high):
+        """Philox (r, k, STREAM_PADDED_SHIFT, high) per replicate r and pair k (broadcast arrays):
+        the shuffle and coordinate seeds ("owen", words 0-2) or the two digital shifts ("lms",
+        words 0-1) of the pair's run of 2^32 points whose high index word is `high`."""
+        return _grid_words(seed, replicate, pair, STREAM_PADDED_SHIFT, high)
 
     def padded_matrices(self, seed, pairs: int):
         """("lms") the columns (R, pairs, 32) of M (the index shuffle), L_a and L_b (the two
@@ -408,7 +414,8 @@ class Sobol(Source):
         replicates, pairs = self.replicates, -(-dims // 2)
         point, replicate = divmod_index(_index_words(offset, count), replicates)
         high = jnp.zeros_like(point.lo) if point.hi is None else point.hi
-        words = self._padded_words(seed, replicate[:, None], pairs, high[:, None])  # 4 x (count, pairs)
+        pair = jnp.arange(pairs, dtype=jnp.uint32)[None, :]
+        words = self._padded_words(seed, replicate[:, None], pair, high[:, None])  # 4 x (count, pairs)
         i = point.lo[:, None]
         if self.scramble == "owen":
             first, second = _padded_owen_pair(i, *words[:3])
@@ -426,18 +433,22 @@ class Sobol(Source):
         """(per, R) lanes (the chunk lies in one run of 2^32 points: m0 is a multiple of
         2^bits > j); bit-identical to `_padded_block`."""
         replicates, pairs = self.replicates, -(-dims // 2)
-        replicate = jnp.arange(replicates, dtype=jnp.uint32)[:, None]
+        replicate = jnp.arange(replicates, dtype=jnp.uint32)[None, :]
         high = _u32(0) if first.hi is None else first.hi
-        words = self._padded_words(seed, replicate, pairs, high)                 # 4 x (R, pairs)
+        # Laid out (pairs, R), so that each pair's seeds are one contiguous row: as (R, pairs)
+        # columns, a pair whose second coordinate is dropped (odd dims) leaves a gap in the
+        # strided read, and LLVM then runs half the replicates of the lanes' loop as a scalar
+        # epilogue (measured 3-d: 3.5x Random, 1.26x with rows; benchmarks/paths.py quasi_random).
+        words = self._padded_words(seed, replicate, jnp.arange(pairs, dtype=jnp.uint32)[:, None], high)  # 4 x (pairs, R)
         if self.scramble == "owen":
             i = first.lo + jnp.arange(per, dtype=jnp.uint32)[:, None]            # (per, 1)
-            lanes = [c for k in range(pairs) for c in _padded_owen_pair(i, *(w[None, :, k] for w in words[:3]))]
+            lanes = [c for k in range(pairs) for c in _padded_owen_pair(i, *(w[None, k, :] for w in words[:3]))]
         else:
             shuffle, scramble_a, scramble_b = self.padded_matrices(seed, pairs)
             # The pair's point at m0 (the high bits), then the generator columns of the low bits.
             shuffled = apply_columns(first.lo, shuffle)
-            top = (apply_columns(_reverse_bits(shuffled), scramble_a) ^ words[0],
-                   apply_columns(_reverse_bits(pascal_superset_xor(shuffled)), scramble_b) ^ words[1])
+            top = (apply_columns(_reverse_bits(shuffled), scramble_a) ^ words[0].T,                    # (R, pairs)
+                   apply_columns(_reverse_bits(pascal_superset_xor(shuffled)), scramble_b) ^ words[1].T)
             low = _padded_generator(shuffle, scramble_a, scramble_b, bits) if bits else (None, None)
             lanes = [_xor_over_row_bits(top[c][None, :, k], None if low[c] is None else low[c][None, :, k], per, bits)
                      for k in range(pairs) for c in (0, 1)]
