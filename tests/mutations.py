@@ -1275,6 +1275,16 @@ MUTATIONS = [
       'block = C._single_replicate_block("random", _both, d, ns[-1])',
       ("tests/report/test_point_set_dims.py::test_a_tiny_study_has_its_columns_and_sobol_beats_random_on_the_smooth_product",),
       "every set of the study silently draws plain random points"),
+    # ---- issue 25: elementary functions on the warps' own arguments ----
+    M("sincos-taylor-coefficients", "jaxsample/_core/numerics.py",
+      "np.float32(-0.00019594157)", "np.float32(-1.0 / 5040.0)",
+      ("tests/_core/test_numerics.py::test_sincos_small_is_within_its_stated_ulps_on_the_octant",
+       "tests/_core/test_numerics.py::test_sincos_2pi_is_within_2_ulp_of_float64_over_the_turn_and_its_hard_cases"),
+      "the sine's x^7 coefficient back to Taylor's 1/5040: 5 ulp at π/4, over the stated bounds"),
+    M("concentric-wedge-not-swapped", "jaxsample/samplers/concentric.py",
+      "cos_phi = jnp.where(a_wins, cos_psi, sin_psi)", "cos_phi = jnp.where(a_wins, cos_psi, cos_psi)",
+      ("tests/_core/test_numerics.py::test_concentric_map_is_within_2_to_the_minus_22_of_float64",),
+      "the |b| >= |a| wedges must take cos φ = sin ψ (φ = π/2 - ψ)"),
 ]
 
 def copy_tree(destination: Path) -> None:

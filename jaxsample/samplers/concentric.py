@@ -14,7 +14,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.numerics import safe_sqrt, sincos_2pi
+from .._core.numerics import safe_sqrt, sincos_small
 
 QUARTER_PI = 0.25 * np.pi
 
@@ -30,10 +30,12 @@ def square_to_disk(u):
     other = jnp.where(a_wins, b, a)
     divisor = jnp.where(a_wins | (b != 0), radius, 1.0)
     ratio = other / divisor
-    # φ/2π: (b/a)/8 in the |a| > |b| wedges, 1/4 - (a/b)/8 in the others; sincos_2pi evaluates the
-    # turn fraction with a short polynomial in float32, much cheaper than XLA's sin and cos.
-    turns = jnp.where(a_wins, 0.125 * ratio, 0.25 - 0.125 * ratio)
-    sin_phi, cos_phi = sincos_2pi(turns)
+    # The wedge's own angle ψ = (π/4) ratio lies in [-π/4, π/4], where `sincos_small` needs no
+    # reduction: φ = ψ in the |a| > |b| wedges, so (cos φ, sin φ) = (cos ψ, sin ψ), and φ = π/2 - ψ
+    # in the others, so (cos φ, sin φ) = (sin ψ, cos ψ).
+    sin_psi, cos_psi = sincos_small(QUARTER_PI * ratio)
+    cos_phi = jnp.where(a_wins, cos_psi, sin_psi)
+    sin_phi = jnp.where(a_wins, sin_psi, cos_psi)
     # |radius| is max(|a|, |b|): written so, an integrand of r alone needs neither branch's select.
     return radius * cos_phi, radius * sin_phi, jnp.maximum(jnp.abs(a), jnp.abs(b))
 
