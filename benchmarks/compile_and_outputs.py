@@ -12,7 +12,9 @@ hemisphere), and projections of an environment onto real spherical harmonics of 
 L = 2, 3, 4, 7 (4, 9, 16, 49 coefficients per direction; the SH by the standard recurrences, as
 polynomials in x, y, z), over the uniform sphere. Compile = `jit(...).lower(...).compile()`
 wall time, median of `repeats` fresh compiles (a new closure each time, so nothing is cached);
-run = median ns/sample of `repeats` runs after one warm-up. Ratios jaxsample / by hand.
+run = median ns/sample of `repeats` runs after one warm-up, of the program and of its `jax.grad`
+(the by-hand gradient keeps its residuals, memory growing with n; jaxsample's recomputes each
+chunk in the backward pass, in constant memory). Ratios jaxsample / by hand.
 """
 
 from __future__ import annotations
@@ -107,8 +109,8 @@ def compile_seconds(make, grad: bool, repeats: int):
     return float(np.median(times))
 
 
-def run_ns(fns: dict, n: int, repeats: int) -> dict:
-    compiled = {name: jax.jit(fn) for name, fn in fns.items()}
+def run_ns(fns: dict, n: int, repeats: int, grad: bool = False) -> dict:
+    compiled = {name: jax.jit(jax.grad(fn) if grad else fn) for name, fn in fns.items()}
     for name, fn in compiled.items():
         jax.block_until_ready(fn(jnp.float32(1.0), jax.random.key(0)))
     times = {name: [] for name in fns}
@@ -129,8 +131,8 @@ def main():
     n = 1 << args.log2n
     print(f"n = 2^{args.log2n}, medians of {args.repeats}; {jax.devices()[0].platform}, jax {jax.__version__}\n")
     print("| program | compile: jaxsample / by hand | grad compile: jaxsample / by hand | run ns/sample: jaxsample / by hand "
-          "| run speed, by hand ÷ jaxsample |")
-    print("|---|---|---|---|---|")
+          "| run speed, by hand ÷ jaxsample | grad run ns/sample: jaxsample / by hand | grad run speed |")
+    print("|---|---|---|---|---|---|---|")
     for name, (f, sampler) in cases().items():
         if args.only and not any(part in name for part in args.only.split(",")):
             continue
@@ -139,8 +141,10 @@ def main():
         c = [compile_seconds(m, False, args.repeats) for m in (lib, hand)]
         g = [compile_seconds(m, True, args.repeats) for m in (lib, hand)]
         t = run_ns({"lib": lib(), "hand": hand()}, n, args.repeats)
+        d = run_ns({"lib": lib(), "hand": hand()}, n, args.repeats, grad=True)
         print(f"| {name} | {c[0]:.2f} s / {c[1]:.2f} s = {c[0] / c[1]:.2f}x | {g[0]:.2f} s / {g[1]:.2f} s = "
-              f"{g[0] / g[1]:.2f}x | {t['lib']:.1f} / {t['hand']:.1f} | {t['hand'] / t['lib']:.2f}x |", flush=True)
+              f"{g[0] / g[1]:.2f}x | {t['lib']:.1f} / {t['hand']:.1f} | {t['hand'] / t['lib']:.2f}x "
+              f"| {d['lib']:.1f} / {d['hand']:.1f} | {d['hand'] / d['lib']:.2f}x |", flush=True)
 
 
 if __name__ == "__main__":

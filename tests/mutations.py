@@ -1285,6 +1285,22 @@ MUTATIONS = [
       "cos_phi = jnp.where(a_wins, cos_psi, sin_psi)", "cos_phi = jnp.where(a_wins, cos_psi, cos_psi)",
       ("tests/_core/test_numerics.py::test_concentric_map_is_within_2_to_the_minus_22_of_float64",),
       "the |b| >= |a| wedges must take cos φ = sin ψ (φ = π/2 - ψ)"),
+    # ---- issue 25: the differentiated chunk reads its uniforms stored once ----
+    M("grad-tangents-on-unstored-uniforms", "jaxsample/estimators/engine.py",
+      "once = flat if stored else computed_once(flat, tok)", "once = flat",
+      ("tests/_core/test_fast_path.py::test_a_differentiated_estimate_runs_the_generator_once_per_pass_not_once_per_residual",),
+      "the backward pass's residual loops each re-run Philox (11 computations hold its multiplier, not 5)"),
+    M("grad-tangents-at-other-points", "jaxsample/estimators/engine.py",
+      "once = flat if stored else computed_once(flat, tok)", "once = flat[1:] + flat[:1]",
+      ("tests/estimators/test_gradients.py::test_gradient_matches_central_differences_with_common_random_numbers",),
+      "the tangents are taken at other (still uniform) points: unbiased in the mean, so only a "
+      "comparison with common random numbers sees it"),
+    M("grad-rule-hoists-only-float-tracers", "jaxsample/estimators/engine.py",
+      "traced = [isinstance(c, jax.core.Tracer) for c in closed.consts]",
+      "traced = [isinstance(c, jax.core.Tracer) and jnp.issubdtype(c.dtype, jnp.inexact) for c in closed.consts]",
+      ("tests/_core/test_fast_path.py::test_a_differentiated_estimate_may_close_over_traced_integers_bools_and_keys",),
+      "a traced int, bool or key left as a constant of the replayed jaxpr leaks into the JVP rule "
+      "(jax.closure_convert's behaviour; stop 43's regression)"),
 ]
 
 def copy_tree(destination: Path) -> None:

@@ -57,6 +57,7 @@ from .._core.pytree import Pytree
 from .._core import doublefloat
 from .._core.computed_once import computed_once
 from .._core.lanes import lane_map
+from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 from .._core.numerics import safe_div, safe_sqrt
 from ..uniforms import Source, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, Index, offset_at, token
@@ -251,6 +252,75 @@ def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
     return lane_map(point, lanes[0].shape)(tuple(lanes))
 
 
+def _hoist_traced(fn, example):
+    """(point, consts): fn(x) == point(x, *consts), with consts every tracer fn closes over.
+
+    `jax.closure_convert` hoists only the float tracers; a traced integer, bool or key stays a
+    constant of the per-point jaxpr, and the lazily traced JVP rule of `group_values` would meet
+    it outside its trace (a `jit(grad(...))` whose integrand closes over a traced int failed with
+    "No constant handler"). Here every tracer becomes an argument; concrete constants stay.
+    """
+    closed, out_shape = jax.make_jaxpr(fn, return_shape=True)(example)
+    out_tree = jax.tree.structure(out_shape)
+    traced = [isinstance(c, jax.core.Tracer) for c in closed.consts]
+
+    def point(x, *hoisted):
+        it = iter(hoisted)
+        consts = [next(it) if t else c for c, t in zip(closed.consts, traced)]
+        return jax.tree.unflatten(out_tree, jaxpr_as_fun(ClosedJaxpr(closed.jaxpr, consts))(x))
+
+    return point, [c for c, t in zip(closed.consts, traced) if t]
+
+
+def group_values(values_fn, groups, tok, stored: bool):
+    """values_fn on every group of lanes (as `_lane_values`), with a derivative rule of its own.
+
+    The values are computed on the lanes (one fused loop). Their derivative with respect to
+    what values_fn closes over (the sampler's parameters, f's) is the JVP of the same lanes
+    program evaluated on the chunk's uniforms stored once (`computed_once`). Differentiated,
+    the chunk is recomputed in the backward pass, where each residual of the warp is a consumer
+    of the uniforms of its own, and XLA's CPU fusion copies the generator into every one of them
+    (seen in the optimized HLO of `jax.grad` of the 3-lobe environment estimate of
+    `benchmarks/compile_and_outputs.py`: 8 Philox copies in the backward loop, 2 with this rule).
+    The values are the lanes program's bit for bit, the tangents to float rounding (fusion may
+    contract a multiply-add differently).
+
+    `stored`: the lanes are already stored once (many outputs).
+    """
+    sizes = [len(lanes) for lanes in groups]
+    flat = [lane for lanes in groups for lane in lanes]
+    shape = flat[0].shape
+
+    def regroup(flat):
+        it = iter(flat)
+        return [tuple(next(it) for _ in range(k)) for k in sizes]
+
+    # The per-point program with every traced value it closes over as an argument (traced once, on one point).
+    point, consts = _hoist_traced(lambda one: values_fn(one[None])[0], jnp.zeros((sizes[0],), flat[0].dtype))
+
+    def by_lanes(flat, consts):
+        return [lane_map(lambda one: point(one, *consts), shape)(lanes) for lanes in regroup(flat)]
+
+    if not any(jnp.issubdtype(c.dtype, jnp.inexact) for c in consts):
+        return by_lanes(flat, consts)  # nothing values_fn reads can carry a derivative
+    # The lanes program as a jaxpr, interpreted once and replayed (the rule below needs it again).
+    lanes_jaxpr = jax.make_jaxpr(by_lanes)(flat, list(consts))
+    replay = lambda flat, consts: jaxpr_as_fun(lanes_jaxpr)(*flat, *consts)
+
+    @jax.custom_jvp
+    def values(flat, tok, consts):
+        return replay(flat, consts)
+
+    @values.defjvp
+    def values_jvp(primals, tangents):
+        flat, tok, consts = primals
+        once = flat if stored else computed_once(flat, tok)
+        _, d_out = jax.jvp(lambda c: replay(once, c), (consts,), (tangents[2],))
+        return replay(flat, consts), d_out
+
+    return values(flat, tok, list(consts))
+
+
 # An integrand with more values per point than this has its uniforms stored once per chunk (and
 # `plain.packed_values` its warped sample): XLA computes each output in its own loop, and would
 # re-run the generator and the warp in every one of them.
@@ -274,10 +344,11 @@ def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, siz
     # A narrow stream hands the sources a bare uint32 offset: the program of a 32-bit counter.
     at = offset if offset.wide else offset.lo
     groups = source.lanes(seed, at, size, dims, dtype, total=total, aligned=aligned)
-    if math.prod(out_shape) > MANY_OUTPUTS:
+    stored = math.prod(out_shape) > MANY_OUTPUTS
+    if stored:
         groups = _uniforms_stored_once(groups, token(offset))
     # The g groups share each generator call: computed in one loop, stored once per chunk.
-    values = computed_once([_lane_values(values_fn, lanes) for lanes in groups], token(offset))
+    values = computed_once(group_values(values_fn, groups, token(offset), stored), token(offset))
     return _chunk_moments(values, source.replicates, out_shape, bins, diagnostics)
 
 

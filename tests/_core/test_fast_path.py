@@ -254,3 +254,42 @@ def test_a_many_output_estimate_runs_the_generator_in_a_few_loops_not_one_per_ou
         jax.random.key(0)).compile().as_text()
     assert _computations_with(text, str(0xD2511F53)) <= 4
     assert _computations_with(text, "round-nearest") <= 4
+
+
+def test_a_differentiated_estimate_runs_the_generator_once_per_pass_not_once_per_residual():
+    """`jax.grad` of an estimate recomputes each chunk in the backward pass (the chunks are
+    checkpointed), where every residual of the warp reads the uniforms; XLA's CPU fusion would
+    copy the generator into each of those loops. `engine.group_values` takes the tangents on
+    the uniforms stored once, so the Philox multiplier 0xD2511F53 appears in at most 6
+    computations of the optimized HLO (measured: 5, of which 3 loops run the whole generator:
+    the forward's and the backward's 2 packed pairs; 11 with the uniforms not stored, and the
+    gradient ran 1.5x slower: benchmarks/compile_and_outputs.py)."""
+    import jaxsample as js
+
+    axis = jnp.array([0.3, 0.2, 0.9327379])
+
+    def program(scale, key):
+        f = lambda w: scale * jnp.maximum(w @ axis, 0.0) ** 3
+        return js.estimate(f, js.CosineHemisphere(), key, 1 << 18).mean
+
+    text = jax.jit(jax.grad(program)).lower(jnp.float32(1.0), jax.random.key(0)).compile().as_text()
+    assert _computations_with(text, str(0xD2511F53)) <= 6
+
+
+def test_a_differentiated_estimate_may_close_over_traced_integers_bools_and_keys():
+    """`engine.group_values` hoists every tracer its per-point program closes over into the
+    arguments of its derivative rule. `jax.closure_convert` hoisted only float tracers, and an
+    outer `jit` whose integrand closed over a traced int, bool or key failed in the lazily
+    traced JVP rule ("No constant handler for type: DynamicJaxprTracer"). Each gradient must
+    equal the one with the same value closed over as a constant."""
+    import jaxsample as js
+
+    def program(exponent, power, flip, noise_key):
+        noise = jax.random.uniform(noise_key)
+        f = lambda w: jnp.where(flip, w[2], w[0]) ** power * noise
+        return js.estimate(f, js.PhongLobe(exponent), jax.random.key(0), 1024).mean
+
+    traced = jax.jit(jax.grad(program))(jnp.float32(3.0), 2, True, jax.random.key(3))
+    constant = jax.grad(lambda e: program(e, 2, True, jax.random.key(3)))(jnp.float32(3.0))
+    assert jnp.isfinite(traced) and traced != 0.0
+    np.testing.assert_allclose(traced, constant, rtol=1e-5)
