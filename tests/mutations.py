@@ -1301,6 +1301,11 @@ MUTATIONS = [
       ("tests/_core/test_fast_path.py::test_a_differentiated_estimate_may_close_over_traced_integers_bools_and_keys",),
       "a traced int, bool or key left as a constant of the replayed jaxpr leaks into the JVP rule "
       "(jax.closure_convert's behaviour; stop 43's regression)"),
+    M("grad-rule-instantiates-zero-tangents", "jaxsample/estimators/engine.py",
+      "values.defjvp(values_jvp, symbolic_zeros=True)", "values.defjvp(values_jvp)",
+      ("tests/_core/test_fast_path.py::test_forward_mode_through_an_estimate_ignores_the_parameters_it_does_not_move",),
+      "forward mode pushes zero tangents through the sampler's parameters: 0 · inf = NaN where the "
+      "integrand's partial derivative is infinite at a sample"),
 ]
 
 def copy_tree(destination: Path) -> None:

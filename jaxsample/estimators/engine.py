@@ -57,6 +57,7 @@ from .._core.pytree import Pytree
 from .._core import doublefloat
 from .._core.computed_once import computed_once
 from .._core.lanes import lane_map
+from jax.custom_derivatives import SymbolicZero
 from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 from .._core.numerics import safe_div, safe_sqrt
 from ..uniforms import Source, as_source, seed_from_key
@@ -311,13 +312,23 @@ def group_values(values_fn, groups, tok, stored: bool):
     def values(flat, tok, consts):
         return replay(flat, consts)
 
-    @values.defjvp
     def values_jvp(primals, tangents):
         flat, tok, consts = primals
         once = flat if stored else computed_once(flat, tok)
-        _, d_out = jax.jvp(lambda c: replay(once, c), (consts,), (tangents[2],))
+        # Only the constants with a tangent are differentiated: a zero tangent pushed through a
+        # partial derivative that is infinite at some sample (sqrt or a fractional power at 0,
+        # arccos at ±1) would be 0 · inf = NaN in the output tangent.
+        live = [not isinstance(t, SymbolicZero) for t in tangents[2]]
+
+        def on_live(moving):
+            it = iter(moving)
+            return replay(once, [next(it) if m else c for c, m in zip(consts, live)])
+
+        _, d_out = jax.jvp(on_live, ([c for c, m in zip(consts, live) if m],),
+                           ([t for t, m in zip(tangents[2], live) if m],))
         return replay(flat, consts), d_out
 
+    values.defjvp(values_jvp, symbolic_zeros=True)
     return values(flat, tok, list(consts))
 
 

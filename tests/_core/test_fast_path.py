@@ -293,3 +293,23 @@ def test_a_differentiated_estimate_may_close_over_traced_integers_bools_and_keys
     constant = jax.grad(lambda e: program(e, 2, True, jax.random.key(3)))(jnp.float32(3.0))
     assert jnp.isfinite(traced) and traced != 0.0
     np.testing.assert_allclose(traced, constant, rtol=1e-5)
+
+
+def test_forward_mode_through_an_estimate_ignores_the_parameters_it_does_not_move():
+    """Forward mode (`jax.jvp`, `jax.jacfwd`) of an estimate must push tangents only through what
+    moves: the sampler's own parameters are traced (`compiled_entry`) but carry no tangent here,
+    and sqrt(max(z, 0)) has an infinite partial derivative at the samples with z = 0, so a zero
+    tangent pushed through it would make the derivative 0 · inf = NaN (it did, with the derivative
+    rule of `engine.group_values` taking instantiated zeros). The forward derivative must be
+    finite and equal the reverse one."""
+    import jaxsample as js
+
+    def program(scale):
+        f = lambda w: scale * jnp.sqrt(jnp.maximum(w[2], 0.0))
+        return js.estimate(f, js.UniformCone(-0.5), jax.random.key(0), 1024).mean
+
+    forward = jax.jvp(program, (jnp.float32(1.0),), (jnp.float32(1.0),))[1]
+    reverse = jax.grad(program)(jnp.float32(1.0))
+    assert jnp.isfinite(forward) and forward > 0
+    np.testing.assert_allclose(forward, reverse, rtol=1e-5)
+    np.testing.assert_allclose(jax.jacfwd(program)(jnp.float32(1.0)), reverse, rtol=1e-5)
