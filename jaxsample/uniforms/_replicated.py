@@ -38,14 +38,18 @@ def check_dims(owner: str, dims: int, limit: int) -> int:
     return int(dims)
 
 
-def replicate_words(seed, replicates: int, columns: int, stream: int, word: int = 0):
+def replicate_words(seed, replicates: int, columns: int, stream: int, word: int = 0, by_column: bool = False):
     """Four (replicates, columns) uint32 arrays: Philox of (r, c, stream, word) under the seed.
 
     Each (replicate, column) pair reads its own counter, so the words are independent across
-    replicates and columns (the property the point sets' error bars rest on)."""
-    replicate = jnp.arange(replicates, dtype=jnp.uint32)[:, None]
-    column = jnp.arange(columns, dtype=jnp.uint32)[None, :]
-    replicate, column = jnp.broadcast_arrays(replicate, column)
+    replicates and columns (the property the point sets' error bars rest on). `by_column`: the
+    same words laid out (columns, replicates), so that a lane reading column c's words for its
+    replicates reads one contiguous row (read as a column of the other layout, the row is strided,
+    and LLVM vectorizes the lanes' inner loop over replicates poorly: `lhs`)."""
+    axes = (1, 0) if by_column else (0, 1)
+    shape = (columns, replicates) if by_column else (replicates, columns)
+    replicate = jax.lax.broadcasted_iota(jnp.uint32, shape, axes[0])
+    column = jax.lax.broadcasted_iota(jnp.uint32, shape, axes[1])
     return philox4x32((replicate, column, jnp.full_like(column, _u32(stream)), jnp.full_like(column, _u32(word))),
                       (seed[..., 0, None, None], seed[..., 1, None, None]))
 

@@ -106,15 +106,17 @@ class LatinHypercube(Source):
     def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         m = self._per_replicate(total)
         layout = Layout(offset, count, self.replicates, aligned)
-        words = [replicate_words(seed, self.replicates, dims, STREAM_LHS, w) for w in range(2)]
+        # (dims, R): each coordinate's words one contiguous row (read as columns of (R, dims), 3-d
+        # and 4-d ran at 2.0-2.1x Random, 2-d at 0.96x: quasi_random, n = 2^22).
+        words = [replicate_words(seed, self.replicates, dims, STREAM_LHS, w, by_column=True) for w in range(2)]
         top = np.nextafter(np.array(1.0, dtype), np.array(0.0, dtype))
         p = layout.full(layout.point.lo)
         lanes = []
         for j in range(dims):
-            keys = [(layout.take(words[0][0][:, j]), layout.take(words[0][1][:, j])),
-                    (layout.take(words[0][2][:, j]), layout.take(words[0][3][:, j]))]
+            keys = [(layout.take(words[0][0][j]), layout.take(words[0][1][j])),
+                    (layout.take(words[0][2][j]), layout.take(words[0][3][j]))]
             cell = stratum_permutation(p, keys, m)
-            jitter = bits_to_unit(_mix32(cell ^ layout.take(words[1][0][:, j])), dtype)
+            jitter = bits_to_unit(_mix32(cell ^ layout.take(words[1][0][j])), dtype)
             # cell + jitter may round up to cell + 1 in float32 (cell above 2^(24 - 23) ...): kept below it.
             stratum = cell.astype(dtype)
             within = jnp.minimum(stratum + jitter, _below_float(stratum + 1))
