@@ -1301,6 +1301,12 @@ MUTATIONS = [
       ("tests/_core/test_fast_path.py::test_a_differentiated_estimate_may_close_over_traced_integers_bools_and_keys",),
       "a traced int, bool or key left as a constant of the replayed jaxpr leaks into the JVP rule "
       "(jax.closure_convert's behaviour; stop 43's regression)"),
+    M("lanes-shared-operand-narrowed-to-x64-off", "jaxsample/_core/lanes.py",
+      "with jax.enable_x64(jnp.dtype(dtype).itemsize == 8 or jax.config.jax_enable_x64):",
+      "with jax.enable_x64(jax.config.jax_enable_x64):",
+      ("tests/_core/test_lanes.py::test_an_estimate_inside_an_integrand_keeps_its_64_bit_words",),
+      "a shared float64 operand of an inner program cast to float32 under x64 off: an estimate inside an "
+      "integrand fails with a dtype mismatch"),
     M("grad-rule-instantiates-zero-tangents", "jaxsample/estimators/engine.py",
       "values.defjvp(values_jvp, symbolic_zeros=True)", "values.defjvp(values_jvp)",
       ("tests/_core/test_fast_path.py::test_forward_mode_through_an_estimate_ignores_the_parameters_it_does_not_move",),

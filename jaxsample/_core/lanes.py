@@ -297,7 +297,10 @@ def _cells_of(ev: _Evaluator, x, shape, dtype):
     (cast to the operand's dtype: a literal's Python scalar must not widen under x64)."""
     if isinstance(x, _Lanes):
         return x.cells
-    x = jnp.asarray(x, dtype=dtype)
+    # A 64-bit operand (a program that switched x64 on inside, as Philox and the double-float sums
+    # of a nested estimate do) keeps its width when the caller runs with x64 off.
+    with jax.enable_x64(jnp.dtype(dtype).itemsize == 8 or jax.config.jax_enable_x64):
+        x = jnp.asarray(x, dtype=dtype)
     if x.shape == ():
         return _object_array([x] * int(np.prod(shape, dtype=np.int64)), shape)
     flat = x.reshape(-1)

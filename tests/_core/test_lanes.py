@@ -215,3 +215,17 @@ def test_double_float_chunk_sums_keep_48_bits():
     got = np.asarray(hi, np.float64) + np.asarray(lo, np.float64)
     assert np.all(np.abs(got - exact) <= 2.0 ** -45 * np.abs(columns).sum(axis=1)), (got, exact)
     np.testing.assert_allclose(got, exact, rtol=1e-6)  # 409.5000061, not a float32 sum's 0 or 8
+
+
+def test_an_estimate_inside_an_integrand_keeps_its_64_bit_words():
+    """An integrand may call `estimate` itself: the inner program switches x64 on inside (Philox's
+    uint64 words, the replicate sums' float64 halves), and the outer lanes evaluator, running with
+    x64 off, must keep those operands 64-bit (it cast a shared float64 value to float32 and the
+    comparison beside it failed: "lax.gt requires arguments to have the same dtypes"). Every
+    sample here has f/p constant (4π z over the sphere inside, 4π z / (z / π) over the cosine
+    hemisphere outside), so the nested estimate is 4π² to float32 rounding."""
+    import jaxsample as js
+
+    inner = lambda x: js.estimate(lambda y: x[2] + 0.0 * y[0], js.UniformSphere(), jax.random.key(3), 16).mean
+    value = js.estimate(inner, js.CosineHemisphere(), jax.random.key(4), 64).mean
+    np.testing.assert_allclose(value, 4 * np.pi ** 2, rtol=1e-5)
