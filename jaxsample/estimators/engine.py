@@ -241,18 +241,6 @@ def finish(m: _Moments, count, replicates: int, most: int | None = None) -> dict
 # ----------------------------------------------------------------------------------------------
 
 
-def _lane_values(values_fn, lanes: tuple[jax.Array, ...]) -> jax.Array:
-    """values_fn on the points whose coordinates are `lanes` (d arrays of one shape, the points
-    in C order); the result has that shape + values_fn's output shape.
-
-    `values_fn` is elementwise over the points, so values_fn(u[None])[0] is its per-point form;
-    `lanes.lane_map` evaluates that on one array per coordinate, which XLA fuses into one loop
-    whatever shape of program the integrand is (see `jaxsample._core.lanes` for why vmap is not).
-    """
-    point = lambda one: values_fn(one[None])[0]
-    return lane_map(point, lanes[0].shape)(tuple(lanes))
-
-
 def _hoist_traced(fn, example):
     """(point, consts): fn(x) == point(x, *consts), with consts every tracer fn closes over.
 
@@ -274,11 +262,15 @@ def _hoist_traced(fn, example):
 
 
 def group_values(values_fn, groups, tok, stored: bool):
-    """values_fn on every group of lanes (as `_lane_values`), with a derivative rule of its own.
+    """values_fn on every group of lanes (d arrays of one shape, the points in C order; each
+    result has that shape + values_fn's output shape), with a derivative rule of its own.
 
-    The values are computed on the lanes (one fused loop). Their derivative with respect to
-    what values_fn closes over (the sampler's parameters, f's) is the JVP of the same lanes
-    program evaluated on the chunk's uniforms stored once (`computed_once`). Differentiated,
+    `values_fn` is elementwise over the points, so values_fn(u[None])[0] is its per-point form;
+    `lanes.lane_map` evaluates that on one array per coordinate, which XLA fuses into one loop
+    whatever shape of program the integrand is (see `jaxsample._core.lanes` for why vmap is not).
+    The values' derivative with respect to what values_fn closes over (the sampler's parameters,
+    f's) is the JVP of the same lanes program evaluated on the chunk's uniforms stored once
+    (`computed_once`). Differentiated,
     the chunk is recomputed in the backward pass, where each residual of the warp is a consumer
     of the uniforms of its own, and XLA's CPU fusion copies the generator into every one of them
     (seen in the optimized HLO of `jax.grad` of the 3-lobe environment estimate of
