@@ -1307,6 +1307,11 @@ MUTATIONS = [
       ("tests/_core/test_lanes.py::test_an_estimate_inside_an_integrand_keeps_its_64_bit_words",),
       "a shared float64 operand of an inner program cast to float32 under x64 off: an estimate inside an "
       "integrand fails with a dtype mismatch"),
+    M("one-group-values-not-stored", "jaxsample/estimators/engine.py",
+      "token(offset), stored), token(offset), alone=True)", "token(offset), stored), token(offset))",
+      ("tests/_core/test_fast_path.py::test_a_one_group_estimate_computes_its_points_in_one_loop_whatever_the_integrand_combines",),
+      "a one-group chunk's values reach the replicate sums unstored: XLA's reduction fusion splits the "
+      "integrand's last ops off and each operand's loop re-runs the generator and the warp"),
     M("grad-rule-instantiates-zero-tangents", "jaxsample/estimators/engine.py",
       "values.defjvp(values_jvp, symbolic_zeros=True)", "values.defjvp(values_jvp)",
       ("tests/_core/test_fast_path.py::test_forward_mode_through_an_estimate_ignores_the_parameters_it_does_not_move",),

@@ -39,14 +39,18 @@ def _as_float(value: jax.Array) -> jax.Array:
     return value if value.dtype == target else lax.bitcast_convert_type(value, target)
 
 
-def computed_once(values, token):
+def computed_once(values, token, *, alone: bool = False):
     """`values` (a sequence of arrays of one shape, 32- or 64-bit dtypes) computed in one loop
     per pair of values.
 
     Returns the same values, bit for bit; `token` is any traced integer scalar (the estimator's
     chunk offset, a seed word). Values of other widths (bool, int8) pass through unpacked.
+    `alone`: a single value also crosses the `lax.cond` boundary (computed in one loop and stored),
+    so that no consumer can pull part of its computation into its own fusion (see `engine._chunk`).
     """
     values = list(values)
+    if len(values) == 1 and alone:
+        return list(lax.cond(_always(token), lambda: tuple(values), lambda: tuple(jnp.zeros_like(v) for v in values)))
     if len(values) <= 1:
         return values
     shape = values[0].shape

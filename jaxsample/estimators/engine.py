@@ -350,8 +350,11 @@ def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, siz
     stored = math.prod(out_shape) > MANY_OUTPUTS
     if stored:
         groups = _uniforms_stored_once(groups, token(offset))
-    # The g groups share each generator call: computed in one loop, stored once per chunk.
-    values = computed_once(group_values(values_fn, groups, token(offset), stored), token(offset))
+    # The g groups share each generator call: computed in one loop, stored once per chunk. One
+    # group is stored too: else XLA's CPU reduction fusion (YNNPACK) takes the integrand's last
+    # elementwise ops (the sum of x, y, z) into the replicate sums and leaves each operand its own
+    # loop, each re-running the generator and the warp (Sobol' with UniformSphere: 3 such loops).
+    values = computed_once(group_values(values_fn, groups, token(offset), stored), token(offset), alone=True)
     return _chunk_moments(values, source.replicates, out_shape, bins, diagnostics)
 
 

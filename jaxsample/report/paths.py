@@ -215,6 +215,22 @@ def every_sampler(n, repeats, names=None):
     return rows
 
 
+def sobol_every_sampler(n, repeats, names=None):
+    """Issue 25, target 5: every sampler of the report's table estimating the sum of its sample's
+    components with Sobol' points (`uniforms="sobol"`, Owen-scrambled) within 1.5× of the same
+    estimate with Philox (`"random"`), timed interleaved."""
+    cases = [c for c in sampler_cases() if names is None or c[0] in names]
+    fns = {}
+    for name, s, _, _, _ in cases:
+        fns[(name, "random")] = _estimate_fn(_sum_of_components, s, n)
+        fns[(name, "sobol")] = _estimate_fn(_sum_of_components, s, n, uniforms="sobol")
+    t = _times(fns, repeats)
+    return [_row(f"estimate of Σ components, {name}, uniforms='sobol'", t[(name, "sobol")], n,
+                 t[(name, "sobol")] / t[(name, "random")], "≤ 1.5× random", -1.5,
+                 f"random {1e9 * t[(name, 'random')] / n:.2f} ns/sample")
+            for name, _, _, _, _ in cases]
+
+
 def _acceptance(sampler):
     """Measured fraction of output samples that come from an accepted proposal (`Rejection`), or
     None for samplers that report no acceptance."""
@@ -276,6 +292,7 @@ def path_table(quick: bool = True, tiny: bool = False, progress=print) -> list[d
                 ("Oriented and Mixture", lambda: composition(n_est, repeats)),
                 ("every sampler", lambda: every_sampler(n_est, repeats,
                                                         names=("PhongLobe(20)", "UniformDisk(concentric)") if tiny else None)),
+                ("Sobol' for every sampler", lambda: sobol_every_sampler(n_est, repeats)),
                 ("scene.shade", lambda: shading(n_est, repeats)),
                 ("∫cos³ and its gradient", lambda: benchmarked_case(n_est, repeats))]
     if tiny:  # a smoke test of the machinery, not a measurement

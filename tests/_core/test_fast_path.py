@@ -313,3 +313,19 @@ def test_forward_mode_through_an_estimate_ignores_the_parameters_it_does_not_mov
     assert jnp.isfinite(forward) and forward > 0
     np.testing.assert_allclose(forward, reverse, rtol=1e-5)
     np.testing.assert_allclose(jax.jacfwd(program)(jnp.float32(1.0)), reverse, rtol=1e-5)
+
+
+def test_a_one_group_estimate_computes_its_points_in_one_loop_whatever_the_integrand_combines():
+    """A source with one group of lanes per chunk (Sobol', the lattice, Halton, Random past 2
+    dimensions) hands the chunk's values to the replicate sums with no pair to pack. Without a
+    boundary, XLA's CPU reduction fusion took the integrand's last elementwise ops (here the sum
+    of x, y and z) into the sums and left each operand a loop of its own, each re-running the
+    Sobol' scramble and the warp: the Laine–Karras multiplier 0x6C50B47C sat in 3 computations
+    and the estimate ran 3-4x slower than with Philox (`paths.sobol_every_sampler`). The values
+    are stored once (`computed_once(..., alone=True)`): one computation."""
+    import jaxsample as js
+
+    f = lambda w: w[0] + w[1] + w[2]
+    program = lambda key: js.estimate(f, js.UniformSphere(), key, 1 << 18, uniforms="sobol").mean
+    text = jax.jit(program).lower(jax.random.key(0)).compile().as_text()
+    assert _computations_with(text, str(0x6C50B47C)) == 1
