@@ -11,6 +11,7 @@ The folders are the layers (docs/design.md): `_core` (numerics, pytrees, paramet
 
 `__all__` is what a newcomer needs: the samplers, the estimators, `Estimate` and the modules. The
 rest is reachable through its module (`js.samplers.RejectionInfo`, `js.estimators.EstimateUntil`,
+`js.estimators.GuaranteedEstimate`,
 `js.estimators.integrand_values`, `js.estimators.expectation_values`); `Frame`,
 `UnreliableEstimateWarning` and the pieces for writing a sampler of one's own (`Pytree`,
 `static_field`, `point_method`) are also attributes here, outside `__all__`.
@@ -18,7 +19,8 @@ rest is reachable through its module (`js.samplers.RejectionInfo`, `js.estimator
 
 from . import edges, estimators, numerics, quadrature, samplers, scene, uniforms
 from .estimators import (Estimate, UnreliableEstimateWarning, estimate, estimate_antithetic, estimate_control_variate,
-                         estimate_grad, estimate_mis, estimate_ratio, estimate_until, expectation, expectation_grad)
+                         estimate_grad, estimate_guaranteed, estimate_mis, estimate_ratio, estimate_until, expectation,
+                         expectation_grad)
 from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, Oriented, PhongLobe,
                        PiecewiseConstant1D, PiecewiseConstant2D, Power, Pytree, Rejection, Sampler, Transformed,
                        TruncatedExponential, UniformBox, UniformCone, UniformDisk, UniformHemisphere, UniformSphere,
@@ -63,7 +65,7 @@ __all__ = [
     "Sampler", "parameter",
     # estimators and their result
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
-    "estimate_control_variate", "estimate_until",
+    "estimate_control_variate", "estimate_until", "estimate_guaranteed",
     # gradients
     "expectation", "estimate_grad", "expectation_grad",
     # modules

@@ -2,7 +2,7 @@
 streaming engine (`engine.run_stream`: constant memory, counter-based uniforms, jit/vmap/grad and a
 device mesh); the result type (`result.Estimate`); the plain estimator (`plain`); MIS (`mis`) and
 variance reduction (`variance_reduction`); gradients (`gradients`), gradients with their standard
-errors (`gradient_errors`), estimates to a requested accuracy (`until`) and the diagnostics every
+errors (`gradient_errors`), estimates to a requested accuracy (`until`), with a guaranteed error bound from lattices and nets (`guaranteed`) and the diagnostics every
 estimate carries (`diagnostics`)."""
 
 from . import diagnostics, gradients
@@ -10,6 +10,7 @@ from .diagnostics import UnreliableEstimateWarning
 from .engine import DEFAULT_CHUNK_SIZE, run_stream
 from .gradient_errors import estimate_grad, expectation_grad
 from .gradients import expectation, expectation_values
+from .guaranteed import GuaranteedEstimate, estimate_guaranteed
 from .mis import estimate_mis
 from .plain import estimate, integrand_values
 from .result import Estimate
@@ -19,6 +20,6 @@ from .variance_reduction import estimate_antithetic, estimate_control_variate, e
 __all__ = [
     "Estimate", "estimate", "integrand_values", "run_stream", "DEFAULT_CHUNK_SIZE", "estimate_mis",
     "estimate_ratio", "estimate_antithetic", "estimate_control_variate", "expectation", "expectation_values",
-    "gradients", "estimate_grad", "expectation_grad", "estimate_until", "EstimateUntil",
+    "gradients", "estimate_grad", "expectation_grad", "estimate_until", "EstimateUntil", "estimate_guaranteed", "GuaranteedEstimate",
     "diagnostics", "UnreliableEstimateWarning",
 ]

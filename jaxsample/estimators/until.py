@@ -26,6 +26,10 @@ Sample indices have 64 bits (`jaxsample.uniforms.index`): past 2^32 points the c
 two-word indices. `n_used` is an int32 array, so max_n must be below 2^31 unless
 `jax_enable_x64` is on (then it is an int64 array and max_n may reach 2^31 chunks).
 
+The stopping test here is statistical. For lattices and digitally shifted Sobol' nets,
+`estimate_guaranteed` (`guaranteed.py`) stops instead on a deterministic bound for integrands in a
+cone of smooth functions (Hickernell & Jiménez Rugama 2016); it runs on the host, not under `jit`.
+
 Not differentiable: reverse mode cannot go through a while loop, and the number of samples is
 itself random. Under `jax.grad` (or `jax.jvp`) it raises, naming the n to use: differentiate
 `jaxsample.estimate(..., n)` with the `n_used` this returned.
@@ -123,12 +127,12 @@ def _refuse_closed_over(closed_consts):
             raise TypeError(_NOT_DIFFERENTIABLE)
 
 
-def _check_tolerances(rtol, atol) -> tuple[float, float]:
+def _check_tolerances(rtol, atol, owner: str = "estimate_until", what: str = "the standard error") -> tuple[float, float]:
     if rtol is None and atol is None:
-        raise ValueError("estimate_until: give 'rtol' or 'atol' (a tolerance on the standard error)")
+        raise ValueError(f"{owner}: give 'rtol' or 'atol' (a tolerance on {what})")
     for name, value in (("rtol", rtol), ("atol", atol)):
         if value is not None and not (isinstance(value, (int, float)) and value >= 0 and math.isfinite(value)):
-            raise ValueError(f"estimate_until: parameter '{name}' must be a finite number >= 0; got {value!r}")
+            raise ValueError(f"{owner}: parameter '{name}' must be a finite number >= 0; got {value!r}")
     return float(rtol or 0.0), float(atol or 0.0)
 
 
