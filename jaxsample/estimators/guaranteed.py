@@ -50,7 +50,6 @@ O(n_used), unlike `estimate_until`'s constant memory.
 
 from __future__ import annotations
 
-import functools
 import math
 import warnings
 from typing import Callable
@@ -72,7 +71,7 @@ __all__ = ["GuaranteedEstimate", "estimate_guaranteed", "lattice_coefficients", 
 
 LAG = 4                      # r: the coefficients S~ sums lie r levels below the current m
 MIN_LEVEL = 10               # m_min: 2^10 points per replicate before the first test
-MAX_POINTS = 1 << 31         # n_used is kept on the host; beyond this memory, not the rule, limits
+MAX_POINTS = 1 << 30         # the values are kept on the host (~100 bytes per point and component)
 
 
 def fudge(m) -> float:
@@ -88,7 +87,9 @@ class GuaranteedEstimate(Pytree):
     the R replicate means, a statistical cross-check), `n_used` (points used, R 2^m), `converged`
     (every component met the tolerance before `max_n`), `in_cone` (the necessary conditions of the
     cone held at every step: False means the integrand is outside the cone and the bound is not
-    guaranteed; True is necessary, not sufficient).
+    guaranteed; True is necessary, not sufficient). A complex leaf has the bound of each part as
+    the real and imaginary parts of its `error_bound` (the box `interval()` holds the integral),
+    and |integral - mean| <= abs(error_bound) is what its tolerance was held to.
     """
 
     mean: jax.Array
@@ -257,18 +258,69 @@ def _refuse_traced(sampler, key) -> None:
                         "with the n_used it returned inside the transformation.")
 
 
-@functools.lru_cache(maxsize=64)
-def _chunk_program(f, source, chunk: int, dims: int, dtype):
-    """One compiled program per (integrand, source, chunk, dims, dtype): Y = f(x)/p(x) for the
-    points [offset, offset + chunk) of the stream; the sampler and the seed are traced, so a second
-    call with new parameters or a new key reuses it."""
+_PROGRAMS: dict = {}      # (id(f), source, chunk, dims, dtype, layout) -> (f, compiled chunk program)
+_MAX_PROGRAMS = 16        # the oldest is dropped beyond this (each holds f, its closure and a program)
+
+
+def _chunk_program(f, source, chunk: int, dims: int, dtype, layout):
+    """The compiled program of Y = f(x)/p(x) for the points [offset, offset + chunk) of the stream,
+    with the sampler and the seed traced: a second call with the same integrand *object* and new
+    parameters or a new key reuses it. Keyed on f's identity (never its hash or equality: two
+    callables that compare equal may compute different things) and on its output layout."""
+    key = (id(f), source, chunk, dims, dtype, layout)
+    hit = _PROGRAMS.get(key)
+    if hit is not None and hit[0] is f:
+        return hit[1]
 
     @jax.jit
     def chunk_values(sampler, seed, offset):
         u = source.block(seed, offset, chunk, dims, dtype, aligned=chunk)
         return packed_values(f, sampler, u, "attached", owner="estimate_guaranteed", boundary=False)[0]
 
+    if len(_PROGRAMS) >= _MAX_PROGRAMS:
+        _PROGRAMS.pop(next(iter(_PROGRAMS)))
+    _PROGRAMS[key] = (f, chunk_values)
     return chunk_values
+
+
+def _moduli(layout, packed: np.ndarray) -> np.ndarray:
+    """|component| of a packed float64 vector, both parts of a complex leaf getting the modulus of
+    the pair (NumPy, in float64: `IntegrandLayout.magnitudes` on the host's values)."""
+    if layout.plain:
+        return np.abs(packed)
+    out = np.abs(packed)
+    for leaf in layout.leaves:
+        if leaf.is_complex:
+            real = slice(leaf.start, leaf.start + leaf.size)
+            imaginary = slice(leaf.start + leaf.size, leaf.start + 2 * leaf.size)
+            modulus = np.hypot(packed[..., real], packed[..., imaginary])
+            out[..., real], out[..., imaginary] = modulus, modulus
+    return out
+
+
+def tolerance_met(size: np.ndarray, bound: np.ndarray, atol: float, rtol: float) -> bool:
+    """Whether bound <= max(atol, rtol (size - bound)) in every component (size = |mean|): then
+    |I - mean| <= bound <= max(atol, rtol |I|), since |I| >= |mean| - bound."""
+    return bool(np.all(bound <= np.maximum(atol, rtol * np.maximum(size - bound, 0.0))))
+
+
+def rounded(mean: np.ndarray, bound: np.ndarray, dtype) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, bound) in the output `dtype`: the bound grows by the rounding of the mean and is
+    rounded up, so that |I - mean| <= bound still holds for the numbers returned."""
+    out = mean.astype(dtype)
+    widened = bound + np.abs(mean - out.astype(np.float64))
+    up = widened.astype(dtype)
+    up = np.where(up.astype(np.float64) < widened, np.nextafter(up, np.asarray(np.inf, dtype=dtype)), up)
+    return out, up
+
+
+def _refuse_closed_over_tracers(f, sampler, dims: int, dtype) -> None:
+    closed = jax.make_jaxpr(lambda u: f(sampler.warp(u)))(jax.ShapeDtypeStruct((dims,), dtype)).consts
+    if any(isinstance(c, jax.core.Tracer) for c in closed):
+        raise TypeError("estimate_guaranteed: the integrand closes over a value being traced by jit, vmap or grad; "
+                        "it cannot run under them (it decides on the host, from the values, how many points to "
+                        "draw). Call it outside, then use jaxsample.estimate(..., n) with the n_used it returned "
+                        "inside the transformation.")
 
 
 def estimate_guaranteed(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, *, max_n: int,
@@ -285,15 +337,23 @@ def estimate_guaranteed(f: Callable[[jax.Array], jax.Array], sampler, key: jax.A
     Args:
       f, sampler, key, dtype: as in `estimate` (f may return a pytree of real or complex arrays;
         each component gets its bound). The sampler must be unbatched.
-      max_n: the most points, R 2^m with 2^m per replicate at most 2^31 / R.
+      max_n: the most points, R 2^m, at most 2^30 (the host keeps about 100 bytes per point and
+        component for the transforms).
       rtol, atol: relative and absolute tolerances on the error (at least one, >= 0).
       min_n: points of the first test, R 2^m_min (default R 2^10, GAIL's; m_min >= 5).
       uniforms: "lattice" (default: `Lattice(replicates=2)`, tent transform on), "sobol"
         (`Sobol(replicates=2, scramble="lms")`), or such a source with any R >= 2 (the bound is
         averaged over replicates, so fewer replicates give a tighter bound for the same points).
 
-    Runs on the host: not under `jit`, `vmap` or `grad`. Memory grows with n_used (the values are
-    kept for the transforms).
+    Runs on the host: not under `jit`, `vmap` or `grad` (a worded TypeError, also for an integrand
+    closing over a traced value). Memory grows with n_used (the values are kept for the
+    transforms). The returned mean is rounded to `dtype` and the bound widened by that rounding
+    (and rounded up), so the guarantee is about the numbers returned: a tolerance below the
+    float32 spacing of the integral cannot be met in float32 (use float64 with x64).
+
+    The compiled program is cached per integrand object (its identity, not its equality): pass
+    the same function to reuse it; a changed global or closure variable that f reads is not seen
+    by a cached program (as with `jax.jit`).
     """
     owner = "estimate_guaranteed"
     from .until import _check_tolerances
@@ -326,15 +386,17 @@ def estimate_guaranteed(f: Callable[[jax.Array], jax.Array], sampler, key: jax.A
                          f"{replicates << min_level} with R = {replicates}")
     dtype = resolve_float_dtype(owner, dtype)
     layout = integrand_layout(f, sampler, dtype, owner)
+    dims = sampler.uniform_dims
+    _refuse_closed_over_tracers(f, sampler, dims, dtype)
     sampler = checked(sampler)
     seed = seed_from_key(as_key(key, owner))
-    dims = sampler.uniform_dims
     chunk = replicates << min_level
-    chunk_values = _chunk_program(f, source, chunk, dims, np.dtype(dtype))
+    chunk_values = _chunk_program(f, source, chunk, dims, np.dtype(dtype), layout)
 
-    width = layout.width if not layout.plain else max(1, math.prod(layout.out_shape))
+    width = layout.width
     values = np.zeros((0, replicates * width))
     cone = _Cone(min_level, max_level, replicates * width)
+    agreed = True
     for m in range(min_level, max_level + 1):
         start = 0 if m == min_level else replicates << (m - 1)
         fresh = [np.asarray(chunk_values(sampler, seed, jnp.uint32(offset)), dtype=np.float64)
@@ -347,16 +409,16 @@ def estimate_guaranteed(f: Callable[[jax.Array], jax.Array], sampler, key: jax.A
         values = np.concatenate([values, fresh])
         bounds, holds = cone.update(transform(values), m)
         means = values.mean(axis=0).reshape(replicates, width)
-        mean = means.mean(axis=0)
         per_replicate = bounds.reshape(replicates, width)
-        bound = per_replicate.mean(axis=0)
+        # The estimate is the mean of the R replicate means, so its error is at most the mean of
+        # their bounds (part by part for a complex leaf, whose tolerance then reads the modulus of
+        # the pair: |error| <= hypot(bound_re, bound_im)).
+        mean, bound = rounded(means.mean(axis=0), per_replicate.mean(axis=0), dtype)
         # A second necessary condition, from the replicates: if every replicate's bound holds, the
         # intervals q_r -+ err_r all contain the integral, so they share a point.
-        agree = np.all(np.max(means - per_replicate, axis=0) <= np.min(means + per_replicate, axis=0))
-        agreed = agree if m == min_level else agreed & agree
-        size = np.asarray(layout.magnitudes(jnp.asarray(mean)))
-        tolerance = np.maximum(atol_, rtol_ * np.maximum(size - bound, 0.0))
-        met = bool(np.all(bound <= tolerance))
+        agreed &= bool(np.all(np.max(means - per_replicate, axis=0) <= np.min(means + per_replicate, axis=0)))
+        met = tolerance_met(_moduli(layout, mean.astype(np.float64)), _moduli(layout, bound.astype(np.float64)),
+                            atol_, rtol_)
         if met:
             break
     in_cone = bool(np.all(holds) and agreed)
@@ -364,13 +426,14 @@ def estimate_guaranteed(f: Callable[[jax.Array], jax.Array], sampler, key: jax.A
         warnings.warn(f"{owner}: the integrand failed a necessary condition of the cone (its Fourier or Walsh "
                       "coefficients do not decay consistently, or the replicates' intervals do not overlap): "
                       "error_bound is not guaranteed. A spike or a discontinuity the first points do not resolve "
-                      "does this; use estimate_until's standard error, or raise min_n", UnreliableEstimateWarning,
-                      stacklevel=2)
+                      "does this, and on Sobol' nets at tight tolerances so can a smooth integrand's irregular "
+                      "Walsh coefficients (2-3 keys of 16 at 1e-5 in the benchmark); use estimate_until's "
+                      "standard error, the lattice, or a larger min_n", UnreliableEstimateWarning, stacklevel=2)
     stderr = means.std(axis=0, ddof=1) / math.sqrt(replicates)
     shape = layout.out_shape
 
     def as_array(x):
-        return jnp.asarray(x.reshape(shape), dtype=dtype)
+        return jnp.asarray(np.asarray(x).reshape(shape), dtype=dtype)
 
     result = GuaranteedEstimate(mean=as_array(mean), error_bound=as_array(bound), stderr=as_array(stderr),
                                 n_used=jnp.asarray(replicates << m), converged=jnp.asarray(met),

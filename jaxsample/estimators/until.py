@@ -42,6 +42,7 @@ from typing import Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._core.counts import check_count
 from .._core.entry import compiled_entry
@@ -130,10 +131,25 @@ def _refuse_closed_over(closed_consts):
 def _check_tolerances(rtol, atol, owner: str = "estimate_until", what: str = "the standard error") -> tuple[float, float]:
     if rtol is None and atol is None:
         raise ValueError(f"{owner}: give 'rtol' or 'atol' (a tolerance on {what})")
+    numbers = {}
     for name, value in (("rtol", rtol), ("atol", atol)):
-        if value is not None and not (isinstance(value, (int, float)) and value >= 0 and math.isfinite(value)):
+        number = _real_number(value)
+        if value is not None and not (number is not None and number >= 0 and math.isfinite(number)):
             raise ValueError(f"{owner}: parameter '{name}' must be a finite number >= 0; got {value!r}")
-    return float(rtol or 0.0), float(atol or 0.0)
+        numbers[name] = number or 0.0
+    return numbers["rtol"], numbers["atol"]
+
+
+def _real_number(value) -> float | None:
+    """`value` as a float if it is a concrete real number (Python, NumPy or a JAX array of shape ()),
+    else None; a bool is not a tolerance."""
+    if isinstance(value, (bool, np.bool_)) or isinstance(value, jax.core.Tracer):
+        return None
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return float(value)
+    if isinstance(value, (jax.Array, np.ndarray)) and value.shape == () and value.dtype.kind in "iuf":
+        return float(value)
+    return None
 
 
 @compiled_entry("f", "max_n", "rtol", "atol", "min_n", "uniforms", "mode", "mesh", "chunk_size", "dtype")

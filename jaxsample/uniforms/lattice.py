@@ -42,7 +42,8 @@ base-2 lattice sequence built by the component-by-component construction of Cool
 2^10 .. 2^20 per replicate. Why this one (`benchmarks/lattice_vectors.py`, results in
 `benchmarks/results/lattice-vectors-cpu-2core-2026-12-05.md`): the order-2-weight vector used
 before (lattice-32001-1024-1048576.3600, z = 1, 182667, 469891, ...) has the short dual vector
-h = (-1, -11, -2) (h.z = 0 mod 2^m for every m from 13 to 16), so a smooth 3-d integrand's error
+h = (-1, -11, -2) (h.z = -45 2^16: in the dual lattice for every m <= 16, and the shortest one
+for m = 13 .. 16), so a smooth 3-d integrand's error
 stalled near 1e-5 from 2^10 to 2^16 points; this vector's shortest dual vector in the first three
 coordinates has prod max(1, |h_j|) = 96 .. 21788 for m = 12 .. 20, and of Kuo's four 2^20
 vectors it had the smallest RMS error (4 shifts) in 14 of the 24 (d, m) cells measured at

@@ -75,8 +75,9 @@ def _shortest_dual(z, m: int, reach: int = 40) -> int:
 
 def test_lattice_vector_has_no_short_dual_vector_in_three_dimensions():
     """The generating vector's first three coordinates make a good rule at every 2^m it was built
-    for. The order-2-weight vector used before had h = (-1, -11, -2) in the dual lattice for
-    m = 13 .. 16 (index 20 .. 22: smooth 3-d integrands stalled near 1e-5 error); this one's index
+    for. The order-2-weight vector used before had index 20 .. 22 for m = 10 .. 16 (h = (-1, -11, -2),
+    in its dual lattice for every m <= 16, is the shortest for m = 13 .. 16): smooth 3-d integrands
+    stalled near 1e-5 error there. This one's index
     is 30 .. 21788 over m = 10 .. 20. The bound 90 from m = 12 on fails the old vector at m = 12 .. 16."""
     z = U.lattice_generating_vector(3).astype(np.int64)
     index = {m: _shortest_dual(z, m) for m in range(10, 21)}
