@@ -73,12 +73,14 @@ from .index import Index
 from .philox import _u32, bits_to_unit, philox4x32
 from .sobol import _reverse_bits, _scramble_reversed
 from .sources import Source, _check_replicates
-from ._replicated import STREAM_HALTON, Layout, check_dims, replicate_words, stack_lanes
+from ._replicated import STREAM_HALTON, Layout, check_dims, replicate_words, stack_lanes, store_all_but
 
 __all__ = ["Halton", "halton_points", "halton_primes", "MAX_HALTON_DIMS"]
 
 MAX_HALTON_DIMS = 1024
 SCRAMBLES = ("permutation", "owen")
+STORE_PAST = 48     # more coordinates than this: all but FUSED_LANES are stored (`_replicated.store_all_but`)
+FUSED_LANES = 32
 
 
 def _primes(count: int) -> np.ndarray:
@@ -526,7 +528,8 @@ class Halton(Source):
                 bits = _mix32(_mix32(key) ^ layout.take(v3[j, k_count]))
                 start = (bits.astype(jnp.float64) + 0.5) * 2.0 ** -32
                 lanes.append(layout.full(_to_unit(_horner(scrambled, start, b, lead), dtype)))
-        return (tuple(lanes),)
+        # Past STORE_PAST coordinates one fused loop is not vectorized (`store_all_but`).
+        return (tuple(store_all_but(lanes, FUSED_LANES, seed[..., 0]) if dims > STORE_PAST else lanes),)
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         (lanes,) = self.lanes(seed, offset, count, dims, dtype, total, aligned)

@@ -43,9 +43,12 @@ import numpy as np
 from .philox import _u32, bits_to_unit
 from .halton import _mix32
 from .sources import Source, _check_replicates
-from ._replicated import STREAM_LHS, Layout, replicate_words, stack_lanes
+from ._replicated import STREAM_LHS, Layout, replicate_words, stack_lanes, store_all_but
 
 __all__ = ["LatinHypercube", "stratum_permutation"]
+
+STORE_PAST = 24    # more coordinates than this: all but FUSED_LANES are stored (`_replicated.store_all_but`)
+FUSED_LANES = 16
 
 
 def _bijection(x, keys, bits: int):
@@ -121,7 +124,8 @@ class LatinHypercube(Source):
             stratum = cell.astype(dtype)
             within = jnp.minimum(stratum + jitter, _below_float(stratum + 1))
             lanes.append(jnp.minimum(within / float(m), top))
-        return (tuple(lanes),)
+        # Past STORE_PAST coordinates one fused loop is not vectorized (`store_all_but`).
+        return (tuple(store_all_but(lanes, FUSED_LANES, seed[..., 0]) if dims > STORE_PAST else lanes),)
 
     def block(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         (lanes,) = self.lanes(seed, offset, count, dims, dtype, total, aligned)

@@ -479,3 +479,30 @@ def test_latin_hypercube_jitter_is_uniform_in_each_stratum_and_independent():
                 assert correlation_ok(frac[:, r, j], frac[:, r, k]), (r, j, k)
     for j in range(dims):
         assert correlation_ok(frac[:, 0, j], frac[:, 1, j]), j
+
+
+@pytest.mark.parametrize("name", ["lhs", "halton"])
+def test_many_coordinates_are_stored_in_groups_without_changing_a_point(name, monkeypatch):
+    """Past `STORE_PAST` coordinates (24 for the Latin hypercube, 48 for Halton) all but the last
+    `FUSED_LANES` lanes are computed in loops of their own and stored (`_replicated.store_all_but`:
+    one fused loop over every coordinate was not vectorized, 9x Random at 28-d for the Latin
+    hypercube). The program then holds the `lax.cond` boundary that stores them, and the points
+    are bit for bit those of the fused form: the first coordinates equal those of a block with
+    fewer (fused, no boundary). The Latin hypercube at its own threshold (24 vs 26 coordinates);
+    Halton's threshold lowered to 4 here (a 52-d Halton program takes about 50 s to compile)."""
+    from jaxsample.uniforms import halton, lhs
+
+    module, source = {"lhs": (lhs, U.LatinHypercube(replicates=4)), "halton": (halton, U.Halton(replicates=4))}[name]
+    if name == "halton":
+        monkeypatch.setattr(halton, "STORE_PAST", 4)
+        monkeypatch.setattr(halton, "FUSED_LANES", 2)
+    below, above = module.STORE_PAST, module.STORE_PAST + 2
+    seed = U.seed_from_key(jax.random.key(3))
+
+    def program(dims):
+        return jax.jit(lambda s: source.block(s, 0, 256, dims, jnp.float32, total=256)).lower(seed).compile()
+
+    fused, stored = program(below), program(above)
+    assert "conditional" not in fused.as_text()
+    assert "conditional" in stored.as_text()
+    np.testing.assert_array_equal(np.asarray(stored(seed))[:, :below], np.asarray(fused(seed)))
