@@ -73,7 +73,7 @@ from .index import Index
 from .philox import _u32, bits_to_unit, philox4x32
 from .sobol import _reverse_bits, _scramble_reversed
 from .sources import Source, _check_replicates
-from ._replicated import STREAM_HALTON, Layout, check_dims, replicate_words, stack_lanes, store_all_but
+from ._replicated import STREAM_HALTON, Layout, check_dims, stack_lanes, store_all_but
 
 __all__ = ["Halton", "halton_points", "halton_primes", "MAX_HALTON_DIMS"]
 

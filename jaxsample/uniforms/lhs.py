@@ -33,7 +33,6 @@ Needs `total` (as `Stratified`): a multiple of R, with m = total / R at most 2^3
 
 from __future__ import annotations
 
-import math
 from typing import ClassVar
 
 import jax

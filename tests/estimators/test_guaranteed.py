@@ -59,7 +59,7 @@ def test_a_fourier_mode_on_the_lattice_is_one_coefficient_at_h_dot_z():
 
 
 def test_net_coefficients_are_the_walsh_hadamard_transform():
-    m, n = 5, 32
+    n = 32
     values = np.random.default_rng(1).normal(size=(n, 2))
     signs = np.array([[(-1) ** bin(k & i).count("1") for i in range(n)] for k in range(n)])
     np.testing.assert_allclose(G.net_coefficients(values), signs @ values / n, atol=1e-12)
