@@ -10,7 +10,9 @@ Programs (each written twice, in one process):
 Integrands: a 3-term environment integrand (ω ↦ Σ_k c_k max(ω·a_k, 0)^3 over the cosine
 hemisphere), and projections of an environment onto real spherical harmonics of degree < L, for
 L = 2, 3, 4, 7 (4, 9, 16, 49 coefficients per direction; the SH by the standard recurrences, as
-polynomials in x, y, z), over the uniform sphere. Compile = `jit(...).lower(...).compile()`
+polynomials in x, y, z), over the uniform sphere; and `scene.shade` (default MIS, Phong 50 with a sphere
+light and a sky, the parameter scaling the exponent) against the same MIS estimate by hand from the scene
+objects' methods (`shade_hand`; its gradient lacks shade's silhouette boundary term). Compile = `jit(...).lower(...).compile()`
 wall time, median of `repeats` fresh compiles (a new closure each time, so nothing is cached);
 run = median ns/sample of `repeats` runs after one warm-up, of the program and of its `jax.grad`
 (the by-hand gradient keeps its residuals, memory growing with n; jaxsample's recomputes each
@@ -98,6 +100,62 @@ def hand_program(f, sampler, n):
     return run
 
 
+# scene.shade, default strategy "mis" (one BRDF and one light sample per pair, power heuristic), at the
+# report's shading point: Phong 50 with a sphere light and a sky; the parameter is the Phong exponent.
+SHADE_POINT, SHADE_NORMAL, SHADE_WO = jnp.zeros(3), jnp.array([0.0, 0.0, 1.0]), jnp.array([0.3, 0.0, 0.954])
+
+
+def shade_lights():
+    return [js.scene.SphereLight(jnp.array([-0.9, 0.0, 3.0]), 0.3, 10.0), js.scene.ConstantSky(0.2)]
+
+
+def shade_library(n):
+    return lambda s, key: js.scene.shade(SHADE_POINT, SHADE_NORMAL, SHADE_WO, js.scene.Phong(50.0 * s, 0.9),
+                                         shade_lights(), key, n).mean
+
+
+def shade_hand(n):
+    """The same MIS estimate by hand: the scene objects' own sample/pdf/eval methods, `jax.vmap` over
+    a chunk's pairs, chunks in `lax.map`. Its gradient has no silhouette boundary term (shade's has),
+    so for the gradient it is the cheaper program, not the same estimator."""
+    from jaxsample.samplers.frame import Frame
+
+    def run(s, key):
+        brdf, lights = js.scene.Phong(50.0 * s, 0.9), shade_lights()
+        frame = Frame.from_normal(SHADE_NORMAL)
+        wo = frame.to_local(SHADE_WO / jnp.linalg.norm(SHADE_WO))
+        count = len(lights)
+
+        def mix_pdf(wi):
+            return sum(light.pdf(SHADE_POINT, wi) for light in lights) / count
+
+        def weight(own, other):
+            return own * own / jnp.where(own * own + other * other > 0, own * own + other * other, 1.0)
+
+        def pair(ub, ul):
+            wi_local, p_b = brdf.sample(wo, ub)
+            wi = frame.to_world(wi_local)
+            radiance = sum(light.radiance_from(SHADE_POINT, wi) for light in lights)
+            f_b = brdf.eval(wo, wi_local) * radiance * jnp.maximum(wi_local[2], 0.0)
+            y_b = jnp.where(p_b > 0, f_b / jnp.where(p_b > 0, p_b, 1.0), 0.0) * weight(p_b, mix_pdf(wi))
+            chosen = jnp.clip(jnp.floor(ul[0] * count), 0, count - 1).astype(jnp.int32)
+            draws = [light.sample(SHADE_POINT, ul[1:]) for light in lights]
+            wl = sum(jnp.where(chosen == k, d[0], 0.0) for k, d in enumerate(draws))
+            radiance_l = sum(light.radiance_from(SHADE_POINT, wl) for light in lights)
+            p_l = mix_pdf(wl)
+            wl_local = frame.to_local(wl)
+            f_l = brdf.eval(wo, wl_local) * radiance_l * jnp.maximum(wl_local[2], 0.0)
+            y_l = jnp.where(p_l > 0, f_l / jnp.where(p_l > 0, p_l, 1.0), 0.0) * weight(p_l, brdf.pdf(wo, wl_local))
+            return y_b + y_l
+
+        def one(k):
+            kb, kl = jax.random.split(k)
+            return jnp.sum(jax.vmap(pair)(jax.random.uniform(kb, (CHUNK, 2)), jax.random.uniform(kl, (CHUNK, 3))))
+        pairs = n // 2
+        return jnp.sum(lax.map(one, jax.random.split(key, pairs // CHUNK))) / pairs
+    return run
+
+
 def compile_seconds(make, grad: bool, repeats: int):
     times = []
     for r in range(repeats):
@@ -133,11 +191,13 @@ def main():
     print("| program | compile: jaxsample / by hand | grad compile: jaxsample / by hand | run ns/sample: jaxsample / by hand "
           "| run speed, by hand ÷ jaxsample | grad run ns/sample: jaxsample / by hand | grad run speed |")
     print("|---|---|---|---|---|---|---|")
-    for name, (f, sampler) in cases().items():
+    programs = {name: (lambda f=f, sampler=sampler: library_program(f, sampler, n),
+                       lambda f=f, sampler=sampler: hand_program(f, sampler, n))
+                for name, (f, sampler) in cases().items()}
+    programs["scene.shade (Phong 50, sphere light, sky; MIS)"] = (lambda: shade_library(n), lambda: shade_hand(n))
+    for name, (lib, hand) in programs.items():
         if args.only and not any(part in name for part in args.only.split(",")):
             continue
-        lib = lambda: library_program(f, sampler, n)
-        hand = lambda: hand_program(f, sampler, n)
         c = [compile_seconds(m, False, args.repeats) for m in (lib, hand)]
         g = [compile_seconds(m, True, args.repeats) for m in (lib, hand)]
         t = run_ns({"lib": lib(), "hand": hand()}, n, args.repeats)

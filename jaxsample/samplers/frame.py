@@ -66,7 +66,15 @@ class Frame(Pytree):
         return v[..., 0:1] * self.x + v[..., 1:2] * self.y + v[..., 2:3] * self.z
 
     def to_local(self, v: jax.Array) -> jax.Array:
-        """World vector to local coordinates: (v·x, v·y, v·z)."""
-        return jnp.stack(
-            [jnp.sum(v * self.x, -1), jnp.sum(v * self.y, -1), jnp.sum(v * self.z, -1)], axis=-1
-        )
+        """World vector to local coordinates: (v·x, v·y, v·z).
+
+        Each dot product is written out, v_0 a_0 + v_1 a_1 + v_2 a_2 (the order of a sum over the
+        last axis), not `jnp.sum(v * a, -1)`: XLA's CPU backend makes a reduction over an axis of 3 a
+        loop of its own that ends the fusion, and in reverse mode through `shade`'s boundary term
+        those loops multiplied (its default gradient in a Phong exponent: 464 -> 290 ns per sample,
+        2026-12-05; the values are unchanged bit for bit on the programs checked)."""
+        v0, v1, v2 = v[..., 0], v[..., 1], v[..., 2]
+
+        def dot(a):
+            return v0 * a[..., 0:1].squeeze(-1) + v1 * a[..., 1:2].squeeze(-1) + v2 * a[..., 2:3].squeeze(-1)
+        return jnp.stack([dot(self.x), dot(self.y), dot(self.z)], axis=-1)
