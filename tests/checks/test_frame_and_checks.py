@@ -52,7 +52,7 @@ def test_frame_on_random_normals_and_round_trip():
 def test_frame_to_local_is_written_out_without_a_reduction():
     """to_local's dot products are products and sums of components, not `jnp.sum(..., -1)`: XLA's CPU
     backend gives a reduction over the axis of 3 a loop of its own, and in reverse mode through
-    `shade`'s boundary term those loops made its gradient in a Phong exponent 1.6x slower. The
+    `shade`'s boundary term those loops made its gradient in a Phong exponent 1.4-1.7x slower. The
     values: each component against the float64 dot product (batched frames and points)."""
     frame = js.Frame.from_normal(jax.random.normal(jax.random.key(2), (64, 3)))
     v = jax.random.normal(jax.random.key(3), (64, 3))
