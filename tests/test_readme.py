@@ -47,6 +47,8 @@ def test_the_readme_has_python_blocks():
 
 @pytest.mark.parametrize("group", sorted(GROUPS))
 def test_readme_blocks_run_outside_the_checkout(group, tmp_path):
+    # Statistical in one place: the user-written sampler's block asserts chi2_test(...).passed at the
+    # default significance, FFR 1e-6 for the group that runs it ("shared").
     result = subprocess.run([sys.executable, "-c", RUNNER], input=json.dumps(GROUPS[group]), cwd=tmp_path,
                             capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-4000:]
@@ -72,3 +74,17 @@ def test_the_readme_names_the_floors_that_ci_tests():
     assert f"jaxlib {floors['jax']}" in supported, supported
     assert set(floors) == {"jax", "numpy"}, floors  # a new dependency gets its floor named in the README too
     assert "pyproject.toml" in (README.parent / ".ci" / "run").read_text()  # the pins are read from it
+
+
+OPTIONAL = {"numpyro": "jaxsample[adapters]", "distrax": "jaxsample[adapters]",
+            "tensorflow_probability": "jaxsample[adapters]", "matplotlib": "jaxsample[plot]"}
+
+
+def test_a_block_that_needs_an_extra_says_which():
+    """The README's install lines give the test or plot extra; a block importing a library only an extra
+    brings names that extra, so that a reader who installed `.[plot]` knows what else to install."""
+    for block in BLOCKS:
+        imported = set(re.findall(r"^\s*(?:import|from)\s+([A-Za-z_]+)", block, re.M))
+        for library, extra in OPTIONAL.items():
+            if library in imported:
+                assert extra in block, f"a README block imports {library} without naming {extra}:\n{block}"

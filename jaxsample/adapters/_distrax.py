@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from ._optional import require
 from ._quiet import quiet_import
 
+require("distrax", "distrax")
 with quiet_import():
     import distrax
 

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
+from ._optional import require
 from ._quiet import quiet_import
 
+require("tensorflow_probability", "TensorFlow Probability (on JAX)")
 with quiet_import():  # TFP loads its modules lazily: the first attribute access imports them
     from tensorflow_probability.substrates import jax as tfp
     tfd = tfp.distributions
