@@ -12,7 +12,8 @@ variables from u to ω: du = p dω on each side, the sample flow V = ∂T/∂θ 
 so a detached estimator (V = 0) misses all of it and a sampler that carries its samples along the
 boundary (light sampling of the light whose rim it is) misses none. The flow at a boundary point
 is V(y) = ∂T(u*; θ)/∂θ with u* = T⁻¹(y) held constant, so the attached correction needs the
-sampler's `inverse`. For an expectation E_p[g] = ∫ g p dμ the jump is Δg · p(y).
+sampler's `inverse` (`Sampler.flow`, or a class's own form of the same flow where u* cannot carry
+it). For an expectation E_p[g] = ∫ g p dμ the jump is Δg · p(y).
 
 The term is estimated by edge sampling: each interior sample i gets a boundary point y_i, drawn
 uniformly by arc length from its own uniforms (the last `boundary_dims` coordinates of its row),
@@ -40,7 +41,7 @@ import jax.numpy as jnp
 from ..edges.masked import boundary_dims, discontinuities
 from .._core.numerics import safe_div
 
-__all__ = ["boundary_values", "boundary_dims", "relative_motion", "refuse_edges"]
+__all__ = ["boundary_values", "boundary_dims", "relative_motion", "refuse_edges", "sample_flow"]
 
 
 def refuse_edges(owner: str, *functions) -> None:
@@ -80,10 +81,16 @@ def sampler_flow(sampler, owner: str, remedy: str):
                          f"{type(sampler).__name__} has no inverse, so the motion of its samples across "
                          f"the boundary is unknown; {remedy}") from None
 
-    def flow(y):
-        return sampler.warp(jax.lax.stop_gradient(sampler.inverse(y)))
+    return lambda y: sample_flow(sampler, y)
 
-    return flow
+
+def sample_flow(sampler, y):
+    """T(sg(T⁻¹(y)); θ), y held: `sampler.flow(y)` (`Sampler.flow`, which a class computes without
+    the round trip through u where u loses the tail), the round trip itself for an object without
+    `flow` (a sampler written without the `Sampler` base)."""
+    if hasattr(sampler, "flow"):
+        return sampler.flow(y)
+    return sampler.warp(jax.lax.stop_gradient(sampler.inverse(jax.lax.stop_gradient(y))))
 
 
 def boundary_values(f, sampler, t: jax.Array, *, moving: bool, weight_by_density: bool = False,

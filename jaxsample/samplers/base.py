@@ -229,6 +229,13 @@ class Sampler(Pytree):
         """The uniforms u with warp(u) = x, where the warp is a bijection."""
         raise NotImplementedError(_no_inverse(type(self)))
 
+    def flow(self, x: jax.Array) -> jax.Array:
+        """The sample through x moving with the parameters: warp(inverse(x)) with x and the uniforms
+        held, so that its derivative is the sample flow V = ∂T(u; θ)/∂θ at u = T⁻¹(x) (what the
+        boundary terms subtract, `jaxsample.estimators.boundary`). A class overrides it where u cannot
+        carry what the derivative needs (`PhongLobe`: the lobe's tail, where u₀ rounds to 1)."""
+        return self.warp(jax.lax.stop_gradient(self.inverse(jax.lax.stop_gradient(x))))
+
     def prob(self, x: jax.Array) -> jax.Array:
         """The density at `x` (the name TFP, distrax and NumPyro use): `pdf`, batched and checked."""
         return apply_point(self, "pdf", x)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import jax
 import jax.numpy as jnp
 
 from .base import Sampler, WrapsSampler, point_method, refuse_class
@@ -78,6 +79,11 @@ class Oriented(WrapsSampler):
     @point_method
     def inverse(self, x):
         return self.base.inverse(self.frame.to_local(x))
+
+    @point_method
+    def flow(self, x):
+        """F · base.flow(Fᵀx), Fᵀx held: the base's sample moves with the base and turns with F."""
+        return self.frame.to_world(self.base.flow(jax.lax.stop_gradient(self.frame.to_local(x))))
 
     def domain(self):
         import dataclasses

@@ -25,6 +25,11 @@ class PhongLobe(Sampler):
     1 - μ = -expm1(log ξ/(n+1)) and builds sin² θ = (1 - μ)(1 + μ) from it; the density uses
     log μ = log1p(-(1 - μ)) with 1 - μ taken from x and y (`one_minus_cos_theta`), never from z.
 
+    The tail: `inverse` returns u₀ = 1 - μ^{n+1}, which rounds to exactly 1 once μ^{n+1} < 2^-25
+    (a direction far outside the lobe, or at or below its horizon), and the warp maps u₀ = 1 to the
+    horizon, μ = 0 for every n, with derivative 0 (`_one_minus_cos_from_u`). What u cannot carry is
+    how a tail direction moves with n at fixed ξ = 1 - u₀; `flow` computes that from
+    log ξ = (n+1) log μ, without the round trip through u.
     """
 
     exponent: jax.Array = parameter(0.0, 1e7, doc="the exponent n")
@@ -37,10 +42,30 @@ class PhongLobe(Sampler):
     def _log_cos_from_u(self, u0):
         return jnp.log1p(-u0) / (self.exponent + 1.0)
 
+    def _one_minus_cos_from_u(self, u0):
+        """1 - μ = -expm1(log ξ/(n + 1)), and exactly 1 (the horizon, for every n) at u₀ = 1.
+
+        u₀ = 1 is ξ = 0, which `inverse` returns for the tail; there log ξ = -inf, the quotient's
+        derivative in n is -log ξ/(n + 1)² = +inf, and expm1's derivative exp(log μ) = 0 multiplies
+        it (0 · inf = NaN, forward and reverse). The horizon does not move with n (μ = 0^{1/(n+1)}),
+        so its derivative is 0: a double where keeps u₀ = 1 out of the logarithm.
+        """
+        horizon = u0 >= 1.0
+        log_cos = self._log_cos_from_u(jnp.where(horizon, 0.0, u0))
+        return jnp.where(horizon, 1.0, -jnp.expm1(log_cos))
+
+    def _log_cos_of(self, x):
+        """(z > 0, log μ) of directions x: log1p(-(1 - μ)) near the pole (z rounds to 1 there), log z
+        toward the horizon (where a vector a few ulps off unit length could push 1 - μ past 1); log μ is a
+        placeholder 0 where z <= 0."""
+        upper = x[..., 2] > 0
+        z_safe = jnp.where(upper, x[..., 2], 1.0)
+        t = jnp.where(upper, one_minus_cos_theta(x), 0.5)
+        return upper, jnp.where(t < 0.5, jnp.log1p(-jnp.minimum(t, 0.5)), jnp.log(z_safe))
+
     @point_method
     def warp(self, u):
-        log_cos = self._log_cos_from_u(u[..., 0])
-        return direction_from_one_minus_cos(-jnp.expm1(log_cos), u[..., 1])
+        return direction_from_one_minus_cos(self._one_minus_cos_from_u(u[..., 0]), u[..., 1])
 
     @point_method
     def warp_with_pdf(self, u):
@@ -70,12 +95,7 @@ class PhongLobe(Sampler):
     @point_method
     def log_pdf(self, x):
         n = self.exponent
-        upper = x[..., 2] > 0
-        z_safe = jnp.where(upper, x[..., 2], 1.0)
-        t = jnp.where(upper, one_minus_cos_theta(x), 0.5)
-        # log cos θ from 1 - cos θ near the pole (z rounds to 1 there), from z itself toward the
-        # horizon (where a vector a few ulps off unit length could push 1 - cos θ past 1).
-        log_cos = jnp.where(t < 0.5, jnp.log1p(-jnp.minimum(t, 0.5)), jnp.log(z_safe))
+        upper, log_cos = self._log_cos_of(x)
         inside = jnp.log1p(n) - jnp.log(2.0 * jnp.pi) + n * log_cos
         # At the horizon (z = 0) the density is (n+1)/2π for n = 0 and 0 for n > 0.
         horizon = jnp.where(n == 0, jnp.log1p(n) - jnp.log(2.0 * jnp.pi), -jnp.inf)
@@ -93,6 +113,22 @@ class PhongLobe(Sampler):
         log_cos = jnp.log1p(-jnp.minimum(t, one_minus_epsilon(t.dtype)))
         u0 = -jnp.expm1((self.exponent + 1.0) * log_cos)
         return jnp.stack([u0, azimuth_fraction(x[..., 1], x[..., 0])], axis=-1)
+
+    @point_method
+    def flow(self, x):
+        """warp(inverse(x)) with the uniforms held, moving with n, computed without u: what is held
+        is log ξ = log(1 - u₀) = (n + 1) log μ, and the azimuth.
+
+        So the sample through x moves as log μ = log ξ/(n + 1), d log μ/dn = -log μ/(n + 1), wherever
+        μ > 0, the tail included, where u₀ rounds to 1 and warp(inverse(x)) sits still at the
+        horizon. Directions at or below the horizon (μ <= 0: ξ = 0, no samples) do not move.
+        """
+        x = jax.lax.stop_gradient(x)
+        upper, log_cos = self._log_cos_of(x)
+        log_xi = jax.lax.stop_gradient((self.exponent + 1.0) * log_cos)
+        moved = direction_from_one_minus_cos(-jnp.expm1(log_xi / (self.exponent + 1.0)),
+                                             azimuth_fraction(x[..., 1], x[..., 0]))
+        return jnp.where(upper[..., None], moved, x)
 
     def domain(self):
         return Directions(breaks=(1.0,))

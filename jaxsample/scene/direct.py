@@ -33,8 +33,9 @@ with sample density q and sample flow V,
 
 with v the velocity of the silhouette and n its outward normal. Detached: V = 0 and the pieces
 add up to Δf v·n. Attached: the BRDF's samples move with the BRDF, the normal and ω_o (V from
-the BRDF sampler's inverse: `brdf.sampler(wo).inverse`), so "brdf" and the BRDF half of "mis" get
-Δ(w_b f)((v − V_b)·n); light samples of the light whose rim it is follow it (no term), and the
+the BRDF sampler's flow, warp(inverse(y)) with the uniforms held: `brdf.sampler(wo).flow`, which
+`PhongLobe` computes in log space, since u rounds to 1 in its tail), so "brdf" and the BRDF half
+of "mis" get Δ(w_b f)((v − V_b)·n); light samples of the light whose rim it is follow it (no term), and the
 other lights' samples crossing it get theirs. So every strategy and mode is unbiased for every
 parameter of the BRDF and of these lights; `shade_grad` gives the gradient with its standard
 error, the boundary term's variance included (it rides on the same evaluation).
@@ -68,7 +69,7 @@ from ..estimators.plain import check_mode
 from ..estimators.result import Estimate
 from ..samplers.frame import Frame
 from .._core.numerics import safe_div
-from ..estimators.boundary import relative_motion
+from ..estimators.boundary import relative_motion, sample_flow
 
 __all__ = ["shade", "shade_grad", "STRATEGIES"]
 
@@ -170,14 +171,12 @@ class _Shading:
             raise ValueError(f"shade: {type(self.brdf).__name__} has no 'sampler(wo)' (a directional sampler with an "
                              "'inverse'), so how its samples move across a light's rim is unknown; for gradients "
                              "use mode='detached' or strategy='light'")
-        sampler = self.brdf.sampler(self.wo_local)
-        u = jax.lax.stop_gradient(sampler.inverse(self.frame.to_local(wi)))
-        return self.frame.to_world(sampler.warp(u))
+        local = jax.lax.stop_gradient(self.frame.to_local(wi))
+        return self.frame.to_world(sample_flow(self.brdf.sampler(self.wo_local), local))
 
     def light_flow(self, index, wi):
         """Light `index`'s sample through world direction wi, moving with that light and the point."""
-        sampler = self.lights[index].sampler(self.point)
-        return sampler.warp(jax.lax.stop_gradient(sampler.inverse(wi)))
+        return sample_flow(self.lights[index].sampler(self.point), wi)
 
     def boundary_values(self, t, strategy, exponent):
         """Per-sample surrogates of value 0 whose derivative is what `strategy` misses at the lights'
