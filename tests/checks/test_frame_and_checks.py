@@ -117,7 +117,8 @@ def test_inverse_check_detects_a_wrong_inverse():
 def test_chi_square_rejects_a_misnormalized_density_and_samples_outside_the_support():
     # A 1 % scale error adds about N·0.01² to the statistic: at 10^6 samples that is 1 sd above
     # the threshold (rejected for 3 keys of 6), at 4·10^6 it is 7 sd (p ≈ 1e-50 for every key
-    # tried), so the rejection is a property of the check, not of the key.
+    # tried), so the rejection is a property of the check, not of the key. FFR below 2e-7 (estimated:
+    # a noncentral chi-square(127) whose median p is 1e-50 reaches 1e-20 that rarely).
     result = testing.chi2_test(_MisnormalizedPhong(jnp.float32(30.0)), jax.random.key(3), n_samples=4_000_000)
     assert not result.passed and result.p_value < 1e-20, result
 
@@ -134,7 +135,8 @@ def test_chi_square_rejects_a_misnormalized_density_and_samples_outside_the_supp
 
 def test_chi_square_p_values_are_uniform_under_the_null():
     # The statistic's law: over 40 independent runs on a correct sampler, p-values spread over
-    # (0, 1). Kolmogorov–Smirnov against U(0, 1) at level 1e-4 (critical D = 0.3 for n = 40).
+    # (0, 1). Kolmogorov–Smirnov against U(0, 1) with critical D = 0.3 for n = 40: level (FFR)
+    # 1.1e-3, P(D_40 >= 0.3) for exactly uniform p-values.
     keys = jax.random.split(jax.random.key(5), 40)
     p = np.sort([testing.chi2_test(js.CosineHemisphere(), k, n_samples=20_000, n_cells=32,
                                    n_pilot=4096).p_value for k in keys])

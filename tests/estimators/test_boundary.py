@@ -122,7 +122,9 @@ def _solid_angle(a, b, c):
 
 def test_spherical_triangle_vertex_gradient_matches_van_oosterom_strackee():
     """∫ 1[ω in the spherical triangle] dω = its solid angle; d/d(vertex a) by the boundary term
-    against central differences of the closed form (5 sigma per component: false failure 1.7e-6)."""
+    against central differences of the closed form (5 sigma per component: false failure 1.7e-6).
+    The value check is the loose one: 2^16 uniform samples of the 0.40 sr triangle estimate it with
+    a relative sd of 2.1 %, so rtol 0.03 is 1.4 sd: FFR 0.16 for the test."""
     a0, b0, c0 = np.array([0.2, 0.1, 1.0]), np.array([1.0, 0.2, 0.6]), np.array([0.3, 1.0, 0.5])
 
     def make(a):

@@ -11,13 +11,13 @@ Tolerance, and the false-failure rate (FFR). The sample standard deviation of K 
 relative standard deviation of sqrt((κ - 1) / (4 (K - 1))), κ the kurtosis of the means (3 for
 normal means: 1/sqrt(2(K - 1)) = 0.031 for K = 512); κ is estimated from the same means and never
 taken below 3. The mean of the K stderrs adds a relative sd of sd(stderr)/(mean(stderr) sqrt(K)).
-The bound is 5 combined sigmas (two-sided normal FFR 5.7e-7 per path; 10 paths, 6e-6 for the
-file) plus the O(1/m) bias of a standard deviation taken from m terms: for R replicates
-E[stderr] = c4(R) σ (normal replicate means; c4(16) = 0.9835), which is divided out, and 1/m is
-added to the bound for the paths whose stderr comes from m >= 256 independent terms. A stderr
-3x or 4x too large gives a ratio of 0.33 or 0.25, far outside the bound (tests/mutations.py
-records that each of these tests fails on such a break). Where the exact value is known, the
-mean of the K means is also held to it within 5 sd / sqrt(K) (FFR 5.7e-7 per path).
+The bound is 5 combined sigmas (two-sided normal FFR 5.7e-7 per path, 15 paths) plus the O(1/m) bias
+of a standard deviation taken from m terms: for R replicates E[stderr] = c4(R) σ (normal replicate
+means; c4(16) = 0.9835), which is divided out, and 1/m is added to the bound for the paths whose
+stderr comes from m >= 256 independent terms. A stderr 3x or 4x too large gives a ratio of 0.33 or
+0.25, far outside the bound (tests/mutations.py records that each of these tests fails on such a
+break). Where the exact value is known, the mean of the K means is also held to it within 5 sd /
+sqrt(K) (FFR 5.7e-7 per path, 11 paths): 26 checks, 1.5e-5 for the file.
 
 Gradient estimators (`expectation(..., gradient=...)`, `estimate(..., mode=...)`) report no
 spread of their own (the stderr they return is the value's, checked here for the leave-one-out

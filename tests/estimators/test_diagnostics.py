@@ -15,13 +15,9 @@ from jaxsample import edges
 from jaxsample.estimators import diagnostics
 from jaxsample.estimators.result import student_t_quantile
 
+from keyring import next_key
+
 N = 1 << 14
-_SEEDS = iter(range(1000, 2000))
-
-
-def _key():
-    """A fresh key per estimate (the suite's key-reuse checker is on)."""
-    return jax.random.key(next(_SEEDS))
 
 
 def _gpd_fit_numpy(x: np.ndarray) -> float:
@@ -42,7 +38,12 @@ def test_khat_recovers_known_pareto_shapes_and_agrees_with_an_independent_fit(sh
     """Y = u^(-ξ), u uniform, has a Pareto tail of shape ξ exactly. Over 24 independent sets of
     2^14 values: the mean k-hat (64 or more tail values each, the PSIS prior shrinking it towards
     0.5 by 10/(M + 10)) is within 0.06 of the shape, and each k-hat within 0.08 of a float64
-    maximum-likelihood fit of the same tail written here (before the prior's shrinkage)."""
+    maximum-likelihood fit of the same tail written here (before the prior's shrinkage).
+
+    FFR for fresh seeds (simulated): the mean of 24 k-hats (M = 256) has sd 0.015, 0.019 and 0.024 at
+    shapes 0.2, 0.5 and 0.9, so the 0.06 band fails with probability 1e-4, 1.5e-3 and 1.2e-2; at 0.9
+    the reference fit's grid (θ down to -1e4 / max x) also misses the profile's maximum in about 1 %
+    of tails, which failed 28 of 130 fresh seeds: FFR about 0.2 for that case."""
     rng = np.random.default_rng(int(shape * 10))
     m = diagnostics.tail_size(N)
     estimates = []
@@ -73,7 +74,9 @@ def test_tail_state_holds_the_largest_values():
     """`chunk_tail` / `merge_tails` / `largest` return exactly the M + 1 largest |Y| unless three
     of them share a bin: over chunks of every length (padded ones included) with the default
     bins, and with 64 bins for the 8 largest of 5000 (nine seeds with no triple; keeping only
-    each bin's maximum fails on five of them)."""
+    each bin's maximum fails on five of them). The seeds are chosen, not drawn: for a fresh seed a
+    triple among the 8 largest in 64 bins has probability 1.2 % (among the 65 largest in 8192 bins,
+    3e-4), so nine fresh seeds would fail a correct tail state with probability 0.10."""
     rng = np.random.default_rng(3)
     y = rng.standard_cauchy(size=3 * diagnostics.BINS + 1000).astype(np.float32)
     chunks = np.split(y, [5000, 2 * diagnostics.BINS + 5000])
@@ -89,23 +92,51 @@ def test_tail_state_holds_the_largest_values():
         np.testing.assert_array_equal(np.asarray(diagnostics.largest(state, 8)), np.sort(np.abs(y))[::-1][:8])
 
 
+def _binned_tail(y: np.ndarray, chunk: int, bins: int, keep: int) -> np.ndarray:
+    """The documented streamed tail state written out in NumPy: the random source hands a chunk
+    over as 4 groups (group q holds its points 4r + q, one Philox block per row r), row r of every
+    group goes to bin r mod bins, each bin keeps its two largest values, and the `keep` largest of
+    those are fitted (descending)."""
+    index = np.arange(len(y))
+    b = ((index % chunk) // 4) % bins
+    order = np.lexsort((-y, b))
+    sorted_bins = b[order]
+    starts = np.r_[True, sorted_bins[1:] != sorted_bins[:-1]]
+    rank = index - np.maximum.accumulate(np.where(starts, index, 0))
+    return np.sort(y[order][rank < 2])[::-1][:keep]
+
+
 def test_streamed_khat_is_the_fit_to_the_samples_averaged():
-    """The k-hat of `estimate` is the fit to the largest |Y| of the very samples averaged: equal to
-    the fit to the top values of the same points drawn as one block, the same for chunk sizes that
-    keep the bins (multiples of 2 x BINS), and within 0.02 for another chunking."""
+    """The k-hat of `estimate` is the fit to the largest |Y| of the very samples averaged, as its
+    streamed tail state holds them (the bins' top two, `diagnostics.chunk_tail`): equal, for three
+    chunkings, to the same fit to that state written out in NumPy from the same points; and within
+    0.06 of the fit to the exact top values (the state drops a value when three of them share a
+    bin), which is near the shape 0.6.
+
+    FFR < 1.5e-3 for a fresh key: over 2000 simulated keys the binned and exact fits differed by at
+    most 0.038 (by more than 0.02 for 1.2 % of keys, with the 2048 bins of chunks of 4000); the fit
+    has sd 0.094, so the band 0.6 ± 0.47 is 5 sd (6e-7). The comparisons with the written-out state
+    are deterministic (float32 rounding of Y: 1e-4)."""
     f = lambda x: x[0] ** -0.6
     box = js.UniformBox(jnp.array([0.0]), jnp.array([1.0]))
     n = 1 << 15
-    key = _key()
-    results = [js.estimate(f, box, jax.random.clone(key), n, chunk_size=c) for c in (1 << 15, 1 << 14, 4000)]
+    key = next_key()
+    chunks = (1 << 15, 1 << 14, 4000)
+    results = [js.estimate(f, box, jax.random.clone(key), n, chunk_size=c) for c in chunks]
     u = js.uniforms.uniform_block("random", jax.random.clone(key), 0, n, 1)
-    y = np.sort(np.asarray(u[:, 0], np.float64) ** -0.6)[::-1]
+    y = np.asarray(u[:, 0], np.float64) ** -0.6
     m = diagnostics.tail_size(n)
-    direct = float(diagnostics.pareto_khat(jnp.asarray(y[: m + 1], jnp.float32)[:, None], m)[0])
-    assert float(results[0].khat) == pytest.approx(direct, abs=1e-4)
-    assert float(results[1].khat) == float(results[0].khat)
-    assert float(results[2].khat) == pytest.approx(direct, abs=0.02)
-    assert 0.45 < direct < 0.75   # the shape is 0.6
+
+    def fit(tail):
+        return float(diagnostics.pareto_khat(jnp.asarray(tail, jnp.float32)[:, None], m)[0])
+
+    for chunk, result in zip(chunks, results):
+        state = _binned_tail(y, chunk, diagnostics.tail_bins(n, chunk), m + 1)
+        assert float(result.khat) == pytest.approx(fit(state), abs=1e-4), chunk
+    direct = fit(np.sort(y)[::-1][: m + 1])
+    for result in results:
+        assert float(result.khat) == pytest.approx(direct, abs=0.06)
+    assert 0.13 < direct < 1.07   # the shape is 0.6
 
 
 # ---------------------------------------------------------------------------------------------
@@ -119,19 +150,27 @@ def _lobe_batch(sampler_of, exponent, n=N):
     def one(normal, key):
         f = lambda w: jnp.maximum(w @ normal, 0.0) ** exponent
         return js.estimate(f, sampler_of(normal), key, n)
-    return jax.jit(jax.vmap(one))(NORMALS, jax.random.split(_key(), NORMALS.shape[0]))
+    return jax.jit(jax.vmap(one))(NORMALS, jax.random.split(next_key(), NORMALS.shape[0]))
 
 
 def test_unoriented_phong_lobe_is_flagged_wherever_it_is_wrong():
-    """∫ max(ω·n, 0)^5 dω = π/3 with PhongLobe(5) about z, 64 normals: every estimate more than
-    4 stderr from π/3 is flagged (most are: f/p has tail index 5/6 near the lobe's horizon), as is
-    every estimate whose samples all miss f (k = 20)."""
+    """∫ max(ω·n, 0)^5 dω = π/3 with PhongLobe(5) about z, 64 normals: the estimates more than
+    4 stderr from π/3 are flagged (most are: f/p has tail index 5/6 near the lobe's horizon), as is
+    every estimate whose samples all miss f (k = 20).
+
+    The flag is not perfect: the estimate of a tilted normal (n_z near 0.65) can be more than 4
+    stderr off and yet have k-hat < 0.5. Over 300 simulated key sets at least one of the 128
+    estimates was so (wrong and unflagged) in 26 %, i.e. about 0.3 such estimates per run; the test
+    allows 3 (Poisson: FFR 3e-4). A flag that stopped working leaves dozens. The other checks never
+    failed in the simulation."""
+    unflagged = []
     for exponent in (5, 20):
         est = _lobe_batch(lambda normal: js.PhongLobe(float(exponent)), exponent)
         z = np.asarray((est.mean - 2 * np.pi / (exponent + 1)) / est.stderr)
         reliable = np.asarray(est.reliable)
-        assert not np.any(reliable & (np.abs(z) > 4)), (exponent, z[reliable])
+        unflagged += list(z[reliable & (np.abs(z) > 4)])
         assert np.mean(~reliable) > 0.8
+    assert len(unflagged) <= 3, unflagged
     missed = np.asarray(est.nonzero) == 0
     assert missed.sum() >= 4 and not np.any(reliable[missed])
 
@@ -147,23 +186,30 @@ def test_oriented_lobes_are_not_flagged():
 def test_infinite_variance_and_divergent_integrals_are_flagged():
     """∫_H² cos θ with PhongLobe(20): f/p ∝ cos^-19 has tail index 21/19 (finite mean, infinite
     variance); ∫_H² 1/(1 - cos θ) diverges (tail index 1). Both flagged; cosine sampling of
-    cos θ is not."""
+    cos θ is not.
+
+    FFR 0.06: k-hat of 256 tail values has sd 0.11-0.12 here and is 0.7 or below for 5 % of keys
+    at tail index 21/19 and 1 % at tail index 1 (simulated; 5 % and 1.2 % over 2000 keys of
+    `estimate`)."""
     for f, sampler in ((lambda w: w[2], js.PhongLobe(20.0)),
                        (lambda w: 1.0 / (1.0 - w[2]), js.UniformHemisphere())):
-        est = js.estimate(f, sampler, _key(), N)
+        est = js.estimate(f, sampler, next_key(), N)
         assert float(est.khat) > 0.7 and not bool(est.reliable)
-    assert bool(js.estimate(lambda w: w[2], js.CosineHemisphere(), _key(), N).reliable)
+    assert bool(js.estimate(lambda w: w[2], js.CosineHemisphere(), next_key(), N).reliable)
 
 
 def test_a_handful_of_nonzero_values_is_flagged():
     """A Phong lobe about z for an integrand that lives near the horizon (x > 0.9): a few samples
-    reach it (about 63 of 2^14 for exponent 3, 14 for 5); and uniform sampling of a 2π·1e-3 sr
+    reach it (about 47 of 2^14 for exponent 3, 7.7 for 5); and uniform sampling of a 2π·1e-3 sr
     cap, hit by about 8 samples with f/p constant (k-hat -inf: only the count can tell): each
-    estimate rests on a handful of samples and is flagged."""
+    estimate rests on a handful of samples and is flagged.
+
+    FFR 7e-4: a correct estimate fails when no sample reaches f, e^-7.7 = 4.4e-4 (exponent 5)
+    and e^-8.2 = 2.8e-4 (the cap)."""
     f = lambda w: jnp.maximum(w[0] - 0.9, 0.0)
     spot = lambda w: jnp.where(w[2] > 1 - 1e-3, 1.0, 0.0)
     for f, sampler in ((f, js.PhongLobe(3.0)), (f, js.PhongLobe(5.0)), (spot, js.UniformSphere())):
-        est = js.estimate(f, sampler, _key(), N)
+        est = js.estimate(f, sampler, next_key(), N)
         assert 0 < float(est.nonzero) * N < float(diagnostics.required_nonzero(N))
         assert not bool(est.reliable)
 
@@ -172,7 +218,7 @@ def test_zero_variance_stderr_is_floored_at_rounding():
     """Cosine sampling of ∫ cos θ: f/p = π up to float32 rounding; the stderr is two ulps of π
     (not 1e-9 relative, which made z reach 930) and covers the error of the mean."""
     for n in (1 << 12, 1 << 16):
-        est = js.estimate(lambda w: w[2], js.CosineHemisphere(), _key(), n)
+        est = js.estimate(lambda w: w[2], js.CosineHemisphere(), next_key(), n)
         assert float(est.stderr) >= 2 * np.finfo(np.float32).eps * np.pi * 0.999
         assert abs(float(est.mean) - np.pi) <= 2 * float(est.stderr)
         assert bool(est.reliable) and float(est.khat) == -np.inf
@@ -182,7 +228,7 @@ def test_cap_indicator_derivative_is_no_longer_zero():
     """d/dα ∫ 1[ω·a >= cos α] dω = 2π sin α: a masked integrand's boundary term makes it right."""
     def make(alpha):
         return edges.masked(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), alpha), lambda w: 1.0), js.UniformSphere()
-    g = js.estimate_grad(make, jnp.float32(0.7), _key(), 1 << 12)
+    g = js.estimate_grad(make, jnp.float32(0.7), next_key(), 1 << 12)
     assert float(g.mean) == pytest.approx(2 * np.pi * np.sin(0.7), rel=1e-4) and bool(g.reliable)
 
 
@@ -191,7 +237,7 @@ def test_gradient_components_that_are_exactly_zero_are_not_flagged():
     not an unreliable gradient (the estimate of a value would be flagged)."""
     def make(p):
         return (lambda w: p["a"] * w[2] ** 3), js.CosineHemisphere()
-    g = js.estimate_grad(make, {"a": jnp.float32(1.0), "unused": jnp.float32(2.0)}, _key(), 1 << 12)
+    g = js.estimate_grad(make, {"a": jnp.float32(1.0), "unused": jnp.float32(2.0)}, next_key(), 1 << 12)
     assert float(g.mean["unused"]) == 0.0 and bool(g.reliable["unused"]) and bool(g.reliable["a"])
 
 
@@ -223,13 +269,14 @@ def test_replicate_intervals_cover_at_their_level(replicates):
 
 
 def test_an_unreliable_eager_estimate_warns_and_a_jitted_one_does_not():
+    # FFR 1.1e-3: each of the two Phong(20) estimates has k-hat < 0.5 (no flag) for 5.5e-4 of keys.
     f, lobe = (lambda w: w[2]), js.PhongLobe(20.0)
     with pytest.warns(js.UnreliableEstimateWarning, match="k-hat"):
-        js.estimate(f, lobe, _key(), N)
+        js.estimate(f, lobe, next_key(), N)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        est = jax.jit(lambda k: js.estimate(f, lobe, k, N))(_key())
-        js.estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), _key(), N)  # honest: silent
+        est = jax.jit(lambda k: js.estimate(f, lobe, k, N))(next_key())
+        js.estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), next_key(), N)  # honest: silent
     assert not bool(est.reliable)
     assert "reliable=False" in repr(est) and "khat=" in repr(est)
     assert set(est.diagnostics) == {"khat", "nonzero", "ess_fraction", "reliable"}
@@ -237,9 +284,10 @@ def test_an_unreliable_eager_estimate_warns_and_a_jitted_one_does_not():
 
 def test_estimate_until_carries_the_same_verdict():
     """`estimate_until` streams the same tail: the infinite-variance program is flagged there too,
-    and the honest one is not."""
-    bad = js.estimate_until(lambda w: w[2], js.PhongLobe(20.0), _key(), max_n=N, rtol=1e-9, chunk_size=4096)
-    good = js.estimate_until(lambda w: w[2] ** 3, js.CosineHemisphere(), _key(), max_n=N, rtol=1e-9,
+    and the honest one is not. FFR 0.05: the first one's k-hat is 0.7 or below for 5 % of keys
+    (as in test_infinite_variance_and_divergent_integrals_are_flagged)."""
+    bad = js.estimate_until(lambda w: w[2], js.PhongLobe(20.0), next_key(), max_n=N, rtol=1e-9, chunk_size=4096)
+    good = js.estimate_until(lambda w: w[2] ** 3, js.CosineHemisphere(), next_key(), max_n=N, rtol=1e-9,
                              chunk_size=4096)
     assert float(bad.khat) > 0.7 and not bool(bad.reliable)
     assert bool(good.reliable) and float(good.khat) < 0.0
@@ -249,7 +297,7 @@ def test_sobol_until_stops_on_the_student_t_interval():
     """With R = 8 Sobol' replicates `estimate_until` stops only once t_7 stderr / 1.96 meets the
     tolerance, so its t interval is as narrow as the tolerance promises."""
     source = js.uniforms.Sobol(replicates=8)
-    est = js.estimate_until(lambda w: w[2] ** 3, js.CosineHemisphere(), _key(), max_n=1 << 20, rtol=2e-5,
+    est = js.estimate_until(lambda w: w[2] ** 3, js.CosineHemisphere(), next_key(), max_n=1 << 20, rtol=2e-5,
                             uniforms=source, chunk_size=1 << 12, min_n=1 << 12)
     assert bool(est.converged)
     lo, hi = est.interval(0.95)

@@ -164,6 +164,7 @@ def test_detached_gradient_is_exactly_zero_for_every_sample_and_in_estimate():
 
 @pytest.mark.parametrize("k,n", FIXED_CASES)
 def test_attached_gradient_of_a_fixed_integral_is_zero_mean_with_the_exact_variance(k, n):
+    # FFR 1.1e-6 per case (two means within 5 exact standard errors; the variance check < 1e-100).
     keys = jax.random.split(jax.random.key(200 + k), 2)
     u = jax.random.uniform(keys[0], (N_FIXED, 2))
     var = attached_fixed_integral_variance(k, n)
@@ -182,6 +183,7 @@ def test_attached_gradient_of_a_fixed_integral_is_zero_mean_with_the_exact_varia
 @pytest.mark.parametrize("k,n", FIXED_CASES)
 def test_half_detached_estimator_is_caught(k, n, detach):
     # The same statistic as above rejects a half-detached estimator, whose mean is the known bias.
+    # FFR 5.7e-7 per case: the bias check below (5 estimated sd); the rejections have wide margins.
     keys = jax.random.split(jax.random.key(300 + k), 2)
     u = jax.random.uniform(keys[0], (N_FIXED, 2))
     stderr = math.sqrt(attached_fixed_integral_variance(k, n) / N_FIXED)
@@ -275,7 +277,7 @@ def test_pathwise_and_score_gradients_of_an_expectation_are_unbiased(k, n):
         # leave-one-out: the constant-baseline variance at b = E[g], up to O(1/N).
         "score_leave_one_out": math.sqrt(score_variance(k, n, mean) / N_EXPECT),
     }
-    for name, se in stderr.items():
+    for name, se in stderr.items():  # FFR 2.5e-4 per case: 4 checks at 4 exact sd (6.3e-5 each)
         assert abs(grads[name] - exact) < 4 * se, (name, grads[name], exact, se)
     # The wrong estimators are caught by the same threshold.
     assert abs(grads["wrong_score"] - exact) > 4 * stderr["score"]
@@ -419,7 +421,7 @@ def test_expectation_pathwise_and_score_match_central_differences():
     the exact derivative 3/(n+4)² within 5 exact standard errors. Score: its surrogate's value
     does not move the samples (finite differences of it are 0), so it is compared with the exact
     derivative only, within 5 exact standard errors (docs/reference.md's per-sample variance). Normal
-    FFR 5.7e-7 per comparison."""
+    FFR 5.7e-7 per comparison, 1.1e-6 for the two."""
     with jax.enable_x64(True):
         key = jax.random.key(1100)
         k, count = 3, 4096

@@ -18,9 +18,10 @@ from jaxsample.estimators.plain import estimate
 from jaxsample.estimators import (estimate_antithetic, estimate_control_variate,
     estimate_mis, estimate_ratio)
 
+from keyring import next_key
+
 jax.config.update("jax_debug_key_reuse", True)
 
-KEYS = iter(jax.random.split(jax.random.key(31337), 64))
 HALF_PI = np.pi / 2
 
 
@@ -36,11 +37,11 @@ def close(est, truth, k=6.0):
 def test_mis_unbiased(heuristic):
     run = jax.jit(lambda k: estimate_mis(cos3, [js.CosineHemisphere(), js.UniformHemisphere()], k,
                                          [1 << 16, 1 << 15], heuristic=heuristic))
-    est = run(next(KEYS))
+    est = run(next_key())
     assert close(est, HALF_PI) and est.n == 3 << 15
     # Wrong: both techniques with weight 1 (no MIS weights) counts the integral twice.
-    a = estimate(cos3, js.CosineHemisphere(), next(KEYS), 1 << 16)
-    b = estimate(cos3, js.UniformHemisphere(), next(KEYS), 1 << 15)
+    a = estimate(cos3, js.CosineHemisphere(), next_key(), 1 << 16)
+    b = estimate(cos3, js.UniformHemisphere(), next_key(), 1 << 15)
     mean, stderr = float(a.mean + b.mean), float(jnp.hypot(a.stderr, b.stderr))
     assert not abs(mean - HALF_PI) <= 6 * stderr
 
@@ -63,7 +64,7 @@ def test_balance_heuristic_with_unequal_counts_is_exact_for_the_count_weighted_m
     def f(w):
         return sum(n * s.pdf(w[None])[0] for n, s in zip(MIS_COUNTS, samplers)) / total
 
-    est = jax.jit(lambda k: estimate_mis(f, samplers, k, MIS_COUNTS, heuristic="balance"))(next(KEYS))
+    est = jax.jit(lambda k: estimate_mis(f, samplers, k, MIS_COUNTS, heuristic="balance"))(next_key())
     assert abs(float(est.mean) - 1.0) < 1e-5 and float(est.stderr) < 1e-6, (est.mean, est.stderr)
 
 
@@ -74,9 +75,8 @@ def test_mis_weights_are_the_count_weighted_heuristic_on_the_same_samples(heuris
     n_j. Deterministic (no FFR): the two differ only by float32 rounding (rtol 2e-6), while
     weights without the counts give a value 100x farther off on these samples."""
     samplers = _mis_samplers()
-    # A fixed key, not the next of KEYS (which one a test gets depends on how pytest-xdist shares
-    # the tests out): the gap to the count-free weights is random, 21 to 7000 times the rtol over
-    # keys 0-7 (key 0: 21 for power-2); on key 3 it is over 1600 for all three heuristics.
+    # A fixed key chosen for its margin: the gap to the count-free weights is random, 21 to 7000
+    # times the rtol over keys 0-7 (key 0: 21 for power-2); on key 3 it is over 1600 for all three heuristics.
     key = jax.random.key(3)
     est = jax.jit(lambda k: estimate_mis(cos3, samplers, k, MIS_COUNTS, heuristic=heuristic, beta=beta))(
         jax.random.clone(key))
@@ -114,8 +114,8 @@ def test_power_heuristic_beats_balance_on_glossy_lobe_times_small_light():
 
     run = jax.jit(lambda k, h: estimate_mis(f, [lobe, cone], k, [1 << 17, 1 << 17], heuristic=h),
                   static_argnums=1)
-    balance = run(next(KEYS), "balance")
-    power = run(next(KEYS), "power")
+    balance = run(next_key(), "balance")
+    power = run(next_key(), "power")
     assert float(power.variance) < 0.6 * float(balance.variance)
     gap = abs(float(power.mean) - float(balance.mean))
     assert gap <= 6 * np.hypot(float(power.stderr), float(balance.stderr))
@@ -128,7 +128,7 @@ def test_ratio_estimator_bias_shrinks_like_one_over_n():
     (its bounds 2.5 and 6 are 7 sd away) and 32 bias_32 + 2/15 is within ±0.014 of 0 with sd
     0.0072 (the bound 0.047 is > 4.5 sd away even with that O(1/n²) offset): FFR below 1e-5."""
     def mean_ratio(n):
-        keys = jax.random.split(next(KEYS), 1 << 16)
+        keys = jax.random.split(next_key(), 1 << 16)
         est = jax.jit(jax.vmap(lambda k: estimate_ratio(cos3, lambda w: w[2], js.UniformHemisphere(), k, n)))(keys)
         return float(jnp.mean(est.mean)), float(jnp.std(est.mean)) / 256.0
 
@@ -138,35 +138,35 @@ def test_ratio_estimator_bias_shrinks_like_one_over_n():
     assert bias_8 < -6 * sd_8 and bias_32 < -6 * sd_32   # really biased ...
     assert 2.5 < bias_8 / bias_32 < 6.0                   # ... like 1/n (4 expected)
     assert abs(32 * bias_32 + 2 / 15) < 0.35 * 2 / 15     # and with the predicted constant
-    big = estimate_ratio(cos3, lambda w: w[2], js.UniformHemisphere(), next(KEYS), 1 << 18)
+    big = estimate_ratio(cos3, lambda w: w[2], js.UniformHemisphere(), next_key(), 1 << 18)
     assert close(big, 0.5)                                # consistent
 
 
 def test_antithetic_reduces_variance_and_stays_unbiased():
     n = 1 << 16
-    plain = estimate(cos3, js.UniformHemisphere(), next(KEYS), n)
-    anti = estimate_antithetic(cos3, js.UniformHemisphere(), next(KEYS), n)
+    plain = estimate(cos3, js.UniformHemisphere(), next_key(), n)
+    anti = estimate_antithetic(cos3, js.UniformHemisphere(), next_key(), n)
     assert close(anti, HALF_PI)
     assert float(anti.variance) < 0.5 * float(plain.variance)   # 0.3115 ± 0.0023 over 64 keys: 81 sd
     # Where the reflection maps u to a point with the same value, pairs are copies: no gain.
-    same = estimate_antithetic(cos3, js.CosineHemisphere(), next(KEYS), n)
+    same = estimate_antithetic(cos3, js.CosineHemisphere(), next_key(), n)
     # ρ = 1: twice the plain variance (2.002 ± 0.013 over 64 keys; the bound 1.5 is 39 sd away).
-    assert float(same.variance) > 1.5 * float(estimate(cos3, js.CosineHemisphere(), next(KEYS), n).variance)
+    assert float(same.variance) > 1.5 * float(estimate(cos3, js.CosineHemisphere(), next_key(), n).variance)
 
 
 def test_control_variate_reduces_variance_and_stays_unbiased():
     n = 1 << 16
-    plain = estimate(cos3, js.UniformHemisphere(), next(KEYS), n)
-    cv = estimate_control_variate(cos3, lambda w: w[2], np.pi, js.UniformHemisphere(), next(KEYS), n)
+    plain = estimate(cos3, js.UniformHemisphere(), next_key(), n)
+    cv = estimate_control_variate(cos3, lambda w: w[2], np.pi, js.UniformHemisphere(), next_key(), n)
     assert close(cv, HALF_PI)
     assert float(cv.variance) < 0.3 * float(plain.variance)   # 1 - ρ² ≈ 0.160 ± 0.0011: 133 sd
     # A wrong "known" integral biases it visibly.
-    wrong = estimate_control_variate(cos3, lambda w: w[2], 1.05 * np.pi, js.UniformHemisphere(), next(KEYS), n)
+    wrong = estimate_control_variate(cos3, lambda w: w[2], 1.05 * np.pi, js.UniformHemisphere(), next_key(), n)
     assert not close(wrong, HALF_PI)
 
 
 def test_chebyshev_interval_is_wider_than_normal():
-    est = estimate(cos3, js.CosineHemisphere(), next(KEYS), 1 << 12)
+    est = estimate(cos3, js.CosineHemisphere(), next_key(), 1 << 12)
     lo, hi = est.interval(0.95)
     clo, chi = est.chebyshev_interval(0.95)
     np.testing.assert_allclose(float(chi - clo) / float(hi - lo), (1 / np.sqrt(0.05)) / 1.959964, rtol=1e-5)

@@ -123,4 +123,4 @@ def test_the_numpy_baseline_draws_every_sample_when_n_is_not_a_multiple_of_its_c
     for n, chunk in ((1 << 12, 1 << 20), (3000, 1024)):
         mean, stderr = numpy_estimate(n, chunk=chunk, with_stderr=True)  # ∫cos³ over H² = π/2, seed 0
         assert 0.5 * math.sqrt(0.82 / n) < stderr < 2 * math.sqrt(0.82 / n), (n, stderr)
-        assert abs(mean - math.pi / 2) < 5 * stderr, (n, mean)
+        assert abs(mean - math.pi / 2) < 5 * stderr, (n, mean)  # FFR 5.7e-7 each, 1.1e-6 for both n

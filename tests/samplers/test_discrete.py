@@ -37,6 +37,8 @@ def test_chi2_fails_for_wrong_weights():
     wrong = SMALL.copy()
     wrong[1] *= 1.1  # outcome 1 about 6 % too likely
     # At the contract's settings for the entry and by a margin (p < 1e-15; seen over keys: 1e-32 to 1e-51).
+    # FFR about 1e-7 (estimated: a noncentral chi-square(4) whose median p is 1e-40 reaches 1e-15
+    # that rarely; 8e-5 if the median were 1e-32).
     result = chi2_test(WrongWarp(Discrete(SMALL), Discrete(wrong, "alias")), jax.random.key(2),
                        **registry.chi2_settings("Discrete-cdf"))
     assert not result.passed and result.p_value < 1e-15, result

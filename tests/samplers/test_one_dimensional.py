@@ -39,7 +39,8 @@ def test_chi2_fails_for_wrong_samplers():
     keys = jax.random.split(jax.random.key(3), 2)
     # Rate off by 2 %: the statistic's excess over its mean grows like N·(0.02)². At the contract's
     # sample size for these entries (10^6), the rejection has a wide margin: p below 1e-20 where
-    # the Šidák threshold is 1.6e-8 (seen over keys: 1e-49 to 1e-75), so it is not one lucky key.
+    # the Šidák threshold is 1.1e-8 (seen over keys: 1e-49 to 1e-75), so it is not one lucky key.
+    # FFR below 3e-7 per check (estimated: a noncentral chi-square(63) whose median p is 1e-49).
     wrong_rate = WrongWarp(Exponential(1.0), Exponential(1.02))
     result = chi2_test(wrong_rate, keys[0], **registry.chi2_settings("Exponential"))
     assert not result.passed and result.p_value < 1e-20, result

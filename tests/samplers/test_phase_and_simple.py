@@ -195,7 +195,8 @@ def test_hg_warp_and_its_derivative_are_continuous_through_g_zero(dtype):
 
 def test_chi2_rejects_a_wrong_g():
     # g = -0.48 sampled, -0.5 claimed: at the contract's settings for HenyeyGreenstein (400 000
-    # samples) p < 1e-100 for every key tried, where the Šidák threshold is ~1e-8.
+    # samples) p < 1e-100 for every key tried, where the Šidák threshold is ~1e-8. FFR below 1e-26
+    # (estimated: a noncentral chi-square(127) whose median p is 1e-100 reaches 1e-20 that rarely).
     wrong = WrongWarp(js.HenyeyGreenstein(-0.5), js.HenyeyGreenstein(-0.48))
     result = chi2_test(wrong, jax.random.key(7), **registry.chi2_settings("HenyeyGreenstein"))
     assert not result.passed and result.p_value < 1e-20, result

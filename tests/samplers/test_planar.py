@@ -47,8 +47,9 @@ def test_chi2_fails_for_wrong_samplers():
     truth = UniformDisk("polar")
     impostor = Transformed(UniformBox(jnp.array([0.0, 0.0]), jnp.array([1.0, 2 * np.pi])),
                            _shrunk_radius, _disk_to_polar, domain=Disk())
-    # At the contract's settings for the disk (10^5 samples, 1.6e-8 per test) and by a margin:
-    # p < 1e-15 (seen over keys: below 1e-80 for both wrong samplers here).
+    # At the contract's settings for the disk (10^5 samples, 1.1e-8 per test) and by a margin:
+    # p < 1e-15 (seen over keys: below 1e-80 for both wrong samplers here). FFR below 1e-20 (estimated
+    # from a noncentral chi-square(63) whose median p is 1e-80).
     result = chi2_test(WrongWarp(truth, impostor), jax.random.key(12), **registry.chi2_settings("UniformDisk-polar"))
     assert not result.passed and result.p_value < 1e-15, result
     # Vertex c pulled 5 % toward the centroid: samples stay inside, the density is wrong.

@@ -35,6 +35,7 @@ def z_scores(kind, strategy, mode):
                                                 for strategy in ("mis", "brdf", "light")]
                          + [("sphere", "mis", "detached")])
 def test_every_gradient_agrees_with_the_reference(kind, strategy, mode):
+    # FFR per case: 84 (sphere) or 144 (triangle) values at |z| < 5.5, 3.2e-6 or 5.5e-6; 3e-5 in all.
     z = z_scores(kind, strategy, mode)
     assert np.all(np.isfinite(z))
     assert float(np.mean(z ** 2)) < 2.5, (kind, strategy, mode, np.round(z, 1))

@@ -11,9 +11,10 @@ import pytest
 
 from jaxsample import uniforms as U
 
+from keyring import fixed_key, next_key
+
 jax.config.update("jax_debug_key_reuse", True)
 
-KEYS = iter(jax.random.split(jax.random.key(20240604), 64))
 
 # Random123 kat_vectors, "philox4x32 10" lines: counter[4], key[2] -> output[4].
 PHILOX_KAT = [
@@ -75,10 +76,11 @@ def test_bits_to_unit_edges_are_strictly_inside():
 
 @pytest.fixture(scope="module")
 def random_points():
-    return np.asarray(U.uniform_block("random", next(KEYS), 0, 1 << 20, 3))
+    return np.asarray(U.uniform_block("random", fixed_key("random_points"), 0, 1 << 20, 3))
 
 
 def test_random_range_and_uniformity(random_points):
+    # FFR 8e-6: four chi-square checks at 2e-6 each (the range check is exact).
     assert random_points.min() > 0 and random_points.max() < 1
     for j in range(3):
         assert uniform_ok(random_points[:, j])
@@ -88,6 +90,7 @@ def test_random_range_and_uniformity(random_points):
 
 
 def test_random_serial_correlation(random_points):
+    # FFR 4.8e-7: four correlation checks at 1.2e-7 each.
     u = random_points
     assert correlation_ok(u[:-1, 0], u[1:, 0])   # lag 1 in the sample index
     assert correlation_ok(u[:-2, 1], u[2:, 1])   # lag 2 (the two samples sharing a Philox block)
@@ -104,16 +107,16 @@ def test_statistical_checks_fail_on_bad_streams(random_points):
 
 
 def test_different_keys_and_streams_differ():
-    a = np.asarray(U.uniform_block("random", next(KEYS), 0, 4096, 2))
-    b = np.asarray(U.uniform_block("random", next(KEYS), 0, 4096, 2))
+    a = np.asarray(U.uniform_block("random", next_key(), 0, 4096, 2))
+    b = np.asarray(U.uniform_block("random", next_key(), 0, 4096, 2))
     assert not np.any(a == b) or np.mean(a == b) < 1e-3
-    assert correlation_ok(a[:, 0], b[:, 0])
+    assert correlation_ok(a[:, 0], b[:, 0])  # FFR 1.2e-7
 
 
 @pytest.mark.parametrize("source", ["random", "stratified", "sobol"])
 @pytest.mark.parametrize("dims", [1, 2, 6])
 def test_chunking_never_changes_the_points(source, dims):
-    key = next(KEYS)  # one key, cloned per call: every call derives the same seed words from it
+    key = next_key()  # one key, cloned per call: every call derives the same seed words from it
     total = 4096
     whole = U.uniform_block(source, jax.random.clone(key), 0, total, dims, total=total)
     cuts = [0, 1365, 2730, 4095, total]  # odd offsets: windows straddle Philox blocks
@@ -127,7 +130,7 @@ def test_chunking_never_changes_the_points(source, dims):
 
 
 def test_random_lanes_are_the_same_points_as_block():
-    seed = U.seed_from_key(next(KEYS))
+    seed = U.seed_from_key(next_key())
     block = np.asarray(U.Random().block(seed, 64, 1024, 2))
     groups = [np.stack(lanes, axis=-1) for lanes in U.Random().lanes(seed, 64, 1024, 2, aligned=True)]
     np.testing.assert_array_equal(block[0::2], groups[0])
@@ -163,7 +166,7 @@ def test_scrambled_sobol_keeps_the_net_property():
     """
     source = U.Sobol(replicates=4)
     m = 1024
-    points = np.asarray(U.uniform_block(source, next(KEYS), 0, 4 * m, 64, total=4 * m))
+    points = np.asarray(U.uniform_block(source, next_key(), 0, 4 * m, 64, total=4 * m))
     for r in range(4):
         rep = points[r::4]
         for j in range(64):
@@ -171,13 +174,13 @@ def test_scrambled_sobol_keeps_the_net_property():
         cells = (rep[:, 0] * 32).astype(int) * 32 + (rep[:, 1] * 32).astype(int)
         assert np.bincount(cells, minlength=m).max() == 1
     assert not np.array_equal(points[0::4], points[1::4])
-    rand = np.asarray(U.uniform_block("random", next(KEYS), 0, m, 1))
+    rand = np.asarray(U.uniform_block("random", next_key(), 0, m, 1))
     assert np.bincount((rand[:, 0] * m).astype(int), minlength=m).max() > 1
 
 
 def test_scrambled_sobol_points_are_uniform_over_keys():
     """Point 0 of replicate 0 over 2^14 keys is uniform in each of 4 dims (chi2, FFR 8e-6)."""
-    keys = jax.random.split(next(KEYS), 1 << 14)
+    keys = jax.random.split(next_key(), 1 << 14)
     first = jax.vmap(lambda k: U.uniform_block(U.Sobol(2), k, 0, 2, 4, total=2)[0])(keys)
     first = np.asarray(first)
     for j in range(4):
@@ -194,9 +197,9 @@ def test_sobol_scrambles_are_independent_across_dimensions_and_replicates():
     2^14 keys, point 0 and point 1 of replicates 0 and 1 in dims 0..7; every pair of dimensions
     and the two replicates of a dimension are uncorrelated (|r| < 5.3/sqrt(N), FFR 1.2e-7 per
     pair; 2 x 28 + 8 pairs: 7.7e-6 in all). tests/mutations.py records that a shared seed fails."""
-    seeds = np.asarray(U.Sobol(4).scramble_seeds(U.seed_from_key(next(KEYS)), 128))
+    seeds = np.asarray(U.Sobol(4).scramble_seeds(U.seed_from_key(next_key()), 128))
     assert seeds.shape == (4, 128) and len(np.unique(seeds)) == seeds.size
-    keys = jax.random.split(next(KEYS), 1 << 14)
+    keys = jax.random.split(next_key(), 1 << 14)
     dims = 8
     points = np.asarray(jax.jit(jax.vmap(lambda k: U.uniform_block(U.Sobol(2), k, 0, 4, dims, total=4)))(keys))
     # Global index g = 2 p + r: rows 0, 1 are point 0 of replicates 0, 1; rows 2, 3 are point 1.
@@ -211,12 +214,12 @@ def test_sobol_scrambles_are_independent_across_dimensions_and_replicates():
 def test_stratified_one_point_per_cell():
     m = 33 * 33 + 7  # not a square: 7 leftover random points per replicate
     source = U.Stratified(replicates=2)
-    points = np.asarray(U.uniform_block(source, next(KEYS), 0, 2 * m, 3, total=2 * m))
+    points = np.asarray(U.uniform_block(source, next_key(), 0, 2 * m, 3, total=2 * m))
     for r in range(2):
         rep = points[r::2][: 33 * 33]
         cells = (rep[:, 0] * 33).astype(int) * 33 + (rep[:, 1] * 33).astype(int)
         assert np.bincount(cells, minlength=33 * 33).max() == 1
-    one_d = np.asarray(U.uniform_block(U.Stratified(2), next(KEYS), 0, 2000, 1, total=2000))
+    one_d = np.asarray(U.uniform_block(U.Stratified(2), next_key(), 0, 2000, 1, total=2000))
     assert np.bincount((one_d[0::2, 0] * 1000).astype(int), minlength=1000).max() == 1
 
 
@@ -226,6 +229,6 @@ def test_invalid_arguments_raise():
     with pytest.raises(ValueError, match="replicates"):
         U.Sobol(replicates=1)
     with pytest.raises(ValueError, match="total"):
-        U.uniform_block("stratified", next(KEYS), 0, 8, 2)
+        U.uniform_block("stratified", next_key(), 0, 8, 2)
     with pytest.raises(TypeError, match="PRNG key"):
         U.seed_from_key(jnp.zeros(2, jnp.uint32) + 1.0)
