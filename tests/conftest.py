@@ -23,7 +23,10 @@ if not os.environ.get("JAXSAMPLE_TEST_XLA_DEFAULTS"):
                                + " --xla_cpu_use_fusion_emitters=false --xla_backend_optimization_level=1").strip()
 
 import jax  # noqa: E402
+import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
+
+from tiers import in_second_tier, read_second_tier  # noqa: E402
 
 # Keys are never reused; the checker turns a reuse into an error.
 jax.config.update("jax_debug_key_reuse", True)
@@ -54,6 +57,13 @@ LONG_TESTS_FIRST = (
 
 
 def pytest_collection_modifyitems(config, items):
+    # The second tier: the tests `tests/second_tier.txt` names (made by `tests/tiers.py` from measured
+    # times) are marked `slow`; the README's test command runs the rest, `.ci/run` both.
+    listed = read_second_tier()
+    for item in items:
+        if in_second_tier(item.nodeid, listed):
+            item.add_marker(pytest.mark.slow)
+
     def rank(item):
         return next((i for i, prefix in enumerate(LONG_TESTS_FIRST) if item.nodeid.startswith(prefix)),
                     len(LONG_TESTS_FIRST))

@@ -4,6 +4,7 @@
     python tests/mutations.py --only NAME   # one mutation (repeatable)
     python tests/mutations.py --list        # the records, without running anything
     python tests/mutations.py --no-baseline # skip the unmutated run of the selected tests
+    python tests/mutations.py --jobs 2      # judge two mutations at once
     python tests/mutations.py --only NAME --tests ARG...    # run chosen pytest arguments instead (last)
 
 Each record is a small, deliberate break of the library: (file, exact old text, new text, the
@@ -14,8 +15,11 @@ and as the working directory, so that the copy is what gets imported (checked on
 imported `jaxsample.__file__` must lie inside the copy). The mutation is *caught* when pytest
 reports failing tests (exit status 1); *survived* when they all pass (0); anything else (the old
 text not found exactly `count` times, a collection error, no tests selected, a timeout) is an
-ERROR, which counts as a failure too. Before the mutations, the union of the selected tests runs
-once on an unmutated copy: a selection that fails without a mutation proves nothing.
+ERROR, which counts as a failure too. Each record's tests run first as the fast tier does
+(`-m "not slow"`, the README's test command); only where those do not catch it does the whole
+selection run, and the table says which tier caught each record. Before the mutations, the union
+of the selected tests runs once on an unmutated copy: a selection that fails without a mutation
+proves nothing.
 
 The old texts are short, one-line snippets, so that the records survive unrelated edits; when a
 file changes under a record, the run says ERROR for it rather than skipping it silently.
@@ -25,6 +29,7 @@ Not part of the README's test command: it runs the selected tests once per mutat
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import dataclasses
 import os
 import shutil
@@ -442,8 +447,8 @@ MUTATIONS = [
       ("tests/report/test_verdicts.py::test_headline_table_from_synthetic_rows",),
       "speed-ups taken over the last strategy, not the integrand's baseline"),
     M("strategy-kind-sobol-not-qmc", "jaxsample/report/convergence.py",
-      "        if self.uniforms == \"sobol\":\n            return V.QMC",
-      "        if self.uniforms == \"sobol\":\n            return \"stratified\"",
+      "POINT_SET_KINDS = {\"sobol\": V.QMC,",
+      "POINT_SET_KINDS = {\"sobol\": \"stratified\",",
       ("tests/report/test_verdicts.py::test_strategy_kind_comes_from_its_definition",),
       "Sobol' strategies coloured and ranked as stratified"),
     # ---- integrands: pytrees and complex values (issue 14, item 4) ----
@@ -1279,8 +1284,8 @@ MUTATIONS = [
       ("tests/uniforms/test_point_sets.py::test_scrambled_halton_keeps_the_digit_stratification",),
       "the select chain of the small bases must cover every digit; without pi(0), digit 0 takes pi(b - 1) twice"),
     M("halton-owen-not-nested", "jaxsample/uniforms/halton.py",
-      "key = lo ^ take(w2[:, :, k]) if hi is None else lo ^ take(w2[:, :, k]) ^ _mix32(hi)",
-      "key = take(w2[:, :, k])",
+      "key = lo ^ layout.take(v2[j, k]) if hi is None else lo ^ layout.take(v2[j, k]) ^ _mix32(hi)",
+      "key = layout.take(v2[j, k])",
       ("tests/uniforms/test_point_sets.py::test_owen_halton_permutes_each_digit_by_its_prefix_and_permutation_halton_does_not",),
       "Owen's scramble must hash the digit's prefix: without it every prefix shares one permutation"),
     M("halton-wide-prefix-not-accumulated", "jaxsample/uniforms/halton.py",
@@ -1325,6 +1330,13 @@ MUTATIONS = [
       'numpyro.factor(f"{name}_density", 0.0 * fn.log_prob(value))',
       ("tests/adapters/test_adapters.py::test_numpyro_nuts_with_a_jaxsample_von_mises_fisher_prior",),
       "SphereReparam leaves out the site's density: NUTS samples the likelihood alone"),
+    M("adapters-sphere-reparam-gaussian-radius", "jaxsample/adapters/_numpyro.py",
+      "        if self.radius_scale is None:",
+      "        if True:",
+      ("tests/adapters/test_sphere_reparam_nuts.py::"
+       "test_nuts_on_a_concentrated_direction_with_unknown_kappa_does_not_diverge",),
+      "SphereReparam's auxiliary z back to N(0, I): the chi(3) radius makes a concentrated direction a "
+      "funnel (divergences, 40 leapfrog steps a draw)"),
     M("adapters-key-of-one-uniform", "jaxsample/adapters/foreign.py",
       "    return jnp.stack([low, high])", "    return jnp.stack([k[0], k[0]])",
       ("tests/adapters/test_adapters.py::test_a_foreign_distribution_is_unbiased_over_keys",),
@@ -1425,6 +1437,26 @@ MUTATIONS = [
       ("tests/checks/test_frame_and_checks.py::test_frame_to_local_is_written_out_without_a_reduction",),
       "to_local's dot products as reductions over the axis of 3: XLA's CPU backend gives each its own loop, "
       "and shade's gradient in a Phong exponent ran 1.4-1.7x slower"),
+    M("phong-warp-horizon-nan", "jaxsample/samplers/phong.py",
+      "log_cos = self._log_cos_from_u(jnp.where(horizon, 0.0, u0))", "log_cos = self._log_cos_from_u(u0)",
+      ("tests/scene/test_far_light_gradients.py::test_the_lobe_warp_at_u0_one_is_the_horizon_with_derivative_zero",),
+      "the Phong warp at u0 = 1 (what inverse returns for the lobe's tail) takes log1p(-1) = -inf into the "
+      "quotient by n + 1 and expm1: its derivative in n is 0 * inf = NaN, forward and reverse"),
+    M("phong-flow-through-u", "jaxsample/samplers/phong.py",
+      "    def flow(self, x):", "    def _flow_unused(self, x):",
+      ("tests/scene/test_far_light_gradients.py::"
+       "test_the_far_light_reproduction_is_finite_and_agrees_with_the_reference",
+       "tests/scene/test_far_light_gradients.py::test_the_lobe_flow_moves_the_tail_as_the_closed_form_says"),
+      "the boundary term moves the Phong lobe's samples through u (Sampler.flow's round trip): a rim point "
+      "whose u0 rounds to 1 sits still at the horizon, and attached brdf's exponent gradient at n = 40 is 0 "
+      "against the reference's -4.6e-21"),
+    M("phong-flow-round-trip-nan", "jaxsample/samplers/phong.py",
+      "-jnp.expm1(log_xi / (self.exponent + 1.0))", "-jnp.expm1(jnp.log1p(jnp.expm1(log_xi)) / (self.exponent + 1.0))",
+      ("tests/scene/test_far_light_gradients.py::"
+       "test_the_far_light_reproduction_is_finite_and_agrees_with_the_reference",
+       "tests/scene/test_far_light_gradients.py::test_value_and_gradients_are_finite_wherever_the_light_sits"),
+      "the Phong flow through u0 = -expm1(log xi) and back by log1p(-u0), unguarded: u0 rounds to 1 in the "
+      "lobe's tail, and shade's attached brdf and mis gradients in the exponent are NaN (the issue's far light)"),
 ]
 
 def copy_tree(destination: Path) -> None:
@@ -1450,12 +1482,12 @@ def imported_from(copy: Path, env: dict) -> str:
     return out.stdout.strip()
 
 
-def run_pytest(copy: Path, tests) -> tuple[int, str]:
+def run_pytest(copy: Path, tests, *extra) -> tuple[int, str]:
     env = environment(copy)
     where = imported_from(copy, env)
     if not where.startswith(str(copy)):
         return -1, f"the copy is not what gets imported: jaxsample from {where!r}"
-    command = [sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *tests]
+    command = [sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *extra, *tests]
     try:
         out = subprocess.run(command, cwd=copy, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
     except subprocess.TimeoutExpired:
@@ -1488,11 +1520,36 @@ def union_of_tests(mutations) -> list[list[str]]:
     return ([merged] if merged else []) + keyed
 
 
+FAST_TIER = ("-m", "not slow")  # the README's test command leaves out the tests marked slow (tests/conftest.py)
+NO_TESTS = 5                    # pytest's exit status when the selection is empty
+
+
+def judge(tmp: Path, m: Mutation) -> tuple[str, str, str | None, float]:
+    """(verdict, tier, error, seconds): the record's tests in the fast tier first; where they do not
+    catch it (or none of them is in the fast tier), the whole selection."""
+    copy = tmp / m.name
+    copy_tree(copy)
+    start = time.time()
+    verdict, tier, error = "ERROR", "", apply(copy, m)
+    if error is None:
+        code, output = run_pytest(copy, m.tests, *FAST_TIER)
+        if code == 1:
+            verdict, tier = "caught", "fast"
+        elif code in (0, NO_TESTS):
+            code, output = run_pytest(copy, m.tests)
+            verdict, tier = {1: ("caught", "second"), 0: ("SURVIVED", "")}.get(code, ("ERROR", ""))
+        if verdict == "ERROR":
+            error = f"pytest exit {code}: {output[-1500:]}"
+    shutil.rmtree(copy, ignore_errors=True)
+    return verdict, tier, error, time.time() - start
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", action="append", metavar="NAME", help="run only this mutation (repeatable)")
     parser.add_argument("--list", action="store_true", help="list the mutations and exit")
     parser.add_argument("--no-baseline", action="store_true", help="skip the unmutated run of the selections")
+    parser.add_argument("--jobs", type=int, default=1, help="mutations judged at once (default 1)")
     parser.add_argument("--tests", nargs=argparse.REMAINDER, metavar="ARG",
                         help="(last) run these pytest arguments instead of each record's own selection")
     args = parser.parse_args(argv)
@@ -1512,7 +1569,6 @@ def main(argv=None) -> int:
     if args.tests:
         selected = [dataclasses.replace(m, tests=tuple(args.tests)) for m in selected]
 
-    failures = 0
     with tempfile.TemporaryDirectory(prefix="jaxsample-mutations-") as tmp:
         tmp = Path(tmp)
         if not args.no_baseline:
@@ -1520,44 +1576,37 @@ def main(argv=None) -> int:
             copy_tree(baseline)
             for tests in union_of_tests(selected):
                 start = time.time()
-                code, output = run_pytest(baseline, tests)
+                code, output = run_pytest(baseline, tests, "-n", str(max(args.jobs, 1)))
                 print(f"baseline (unmutated) {' '.join(tests)}: exit {code} in {time.time() - start:.0f} s", flush=True)
                 if code != 0:
                     print(output)
                     print("ERROR: the selected tests fail without any mutation; nothing below would mean anything.")
                     return 2
         rows = []
-        for m in selected:
-            copy = tmp / m.name
-            copy_tree(copy)
-            start = time.time()
-            error = apply(copy, m)
-            if error is None:
-                code, output = run_pytest(copy, m.tests)
-                if code == 1:
-                    verdict = "caught"
-                elif code == 0:
-                    verdict = "SURVIVED"
-                else:
-                    verdict, error = "ERROR", f"pytest exit {code}: {output[-1500:]}"
-            else:
-                verdict = "ERROR"
-            seconds = time.time() - start
-            failures += verdict != "caught"
-            rows.append((m.name, m.file, verdict, seconds))
-            print(f"{m.name:28s} {verdict:8s} {seconds:6.0f} s", flush=True)
-            if error:
-                print(f"    {error}")
-            shutil.rmtree(copy, ignore_errors=True)
+        with concurrent.futures.ThreadPoolExecutor(max_workers=max(args.jobs, 1)) as pool:
+            futures = {pool.submit(judge, tmp, m): m for m in selected}
+            for future in concurrent.futures.as_completed(futures):
+                m = futures[future]
+                verdict, tier, error, seconds = future.result()
+                rows.append((m.name, m.file, verdict, tier, seconds))
+                print(f"{m.name:28s} {verdict:8s} {tier:6s} {seconds:6.0f} s", flush=True)
+                if error:
+                    print(f"    {error}")
+    order = {name: i for i, name in enumerate(names)}
+    rows.sort(key=lambda row: order[row[0]])
 
     print()
-    print(f"| {'mutation':28s} | {'file':34s} | {'result':8s} | {'time':>6s} |")
-    print(f"|{'-' * 30}|{'-' * 36}|{'-' * 10}|{'-' * 8}|")
-    for name, file, verdict, seconds in rows:
-        print(f"| {name:28s} | {file:34s} | {verdict:8s} | {seconds:5.0f}s |")
+    print(f"| {'mutation':28s} | {'file':34s} | {'result':8s} | {'tier':6s} | {'time':>6s} |")
+    print(f"|{'-' * 30}|{'-' * 36}|{'-' * 10}|{'-' * 8}|{'-' * 8}|")
+    for name, file, verdict, tier, seconds in rows:
+        print(f"| {name:28s} | {file:34s} | {verdict:8s} | {tier:6s} | {seconds:5.0f}s |")
     caught = sum(r[2] == "caught" for r in rows)
-    print(f"\n{caught} of {len(rows)} mutations caught; {len(rows) - caught} survived or errored.")
-    return 1 if failures else 0
+    second = [r[0] for r in rows if r[3] == "second"]
+    print(f"\n{caught} of {len(rows)} mutations caught ({caught - len(second)} by the fast tier); "
+          f"{len(rows) - caught} survived or errored.")
+    if second:
+        print(f"caught only by the second tier: {', '.join(second)}")
+    return 1 if caught < len(rows) else 0
 
 
 if __name__ == "__main__":
