@@ -1457,7 +1457,24 @@ MUTATIONS = [
        "tests/scene/test_far_light_gradients.py::test_value_and_gradients_are_finite_wherever_the_light_sits"),
       "the Phong flow through u0 = -expm1(log xi) and back by log1p(-u0), unguarded: u0 rounds to 1 in the "
       "lobe's tail, and shade's attached brdf and mis gradients in the exponent are NaN (the issue's far light)"),
+    M("scene-point-inside-sphere-accepted", "jaxsample/scene/checks.py",
+      "if inside is not None and bool(inside):", "if False:",
+      ("tests/scene/test_scene_checks.py::test_a_point_inside_or_on_a_sphere_light",),
+      "a shading point inside a sphere light is shaded (it gave 0.5048 +- 0.005, marked reliable)"),
+    M("scene-behind-every-light-accepted", "jaxsample/scene/checks.py",
+      "if all(side is not None and bool(side) for side in behind):", "if False:",
+      ("tests/scene/test_scene_checks.py::test_a_point_behind_every_one_sided_light",),
+      "a point behind every one-sided light gets 'all values f/p are 0', not its cause"),
+    M("scene-view-below-accepted", "jaxsample/scene/checks.py",
+      "if n is not None and w is not None and float(n @ w) < 0:", "if False:",
+      ("tests/scene/test_scene_checks.py::test_a_view_below_the_surface_is_refused_with_its_likely_cause",),
+      "a view below the surface is shaded as 0 without a word"),
+    M("integrand-batch-index-in-jax-words", "jaxsample/estimators/integrand.py",
+      "    except IndexError as error:", "    except ZeroDivisionError as error:",
+      ("tests/scene/test_scene_checks.py::test_an_integrand_written_for_a_batch_is_told_it_receives_one_sample",),
+      "an integrand indexed as a batch gets JAX's IndexError, not that f receives one sample"),
 ]
+
 
 def copy_tree(destination: Path) -> None:
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".pytest_cache", "results")

@@ -49,12 +49,14 @@ def _hashable(value) -> bool:
     return True
 
 
-def compiled_entry(*static: str, tuples: tuple[str, ...] = ()) -> Callable:
+def compiled_entry(*static: str, tuples: tuple[str, ...] = (), check: Callable | None = None) -> Callable:
     """Decorator: run the function under `jax.jit` with the arguments named in `static` static.
 
     `tuples`: static arguments that may be given as lists (sample counts per sampler); they are
     passed on as tuples. The argument named `key`, when there is one, goes through the key rule
     (`uniforms.as_key`) first, so a wrong key gets the same message as without compilation.
+    `check(arguments)`, given the bound arguments by name, runs before anything is traced: the
+    checks that need concrete values (a zero-length vector, a point inside a light) see them there.
     """
 
     def wrap(fn: Callable) -> Callable:
@@ -79,6 +81,8 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = ()) -> Callable:
                     arguments[name] = tuple(arguments[name])
             if "key" in arguments:
                 arguments["key"] = as_key(arguments["key"], fn.__name__)
+            if check is not None:
+                check(arguments)
             text = frozenset(name for name, value in arguments.items()
                              if name not in static and isinstance(value, str))
             dynamic = [value for name, value in arguments.items() if name not in static and name not in text]

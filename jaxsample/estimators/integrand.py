@@ -171,7 +171,14 @@ def integrand_layout(f: Callable, sampler, dtype, owner: str) -> IntegrandLayout
     """
     check_float64_enabled(owner, dtype)
     u = jax.ShapeDtypeStruct((sampler.uniform_dims,), dtype)
-    value = jax.eval_shape(lambda u: f(sampler.warp(u)), u)
+    x = jax.eval_shape(sampler.warp, u)
+    try:
+        value = jax.eval_shape(f, x)
+    except IndexError as error:
+        shape = jax.tree.map(lambda a: tuple(a.shape), x)
+        raise IndexError(f"{owner}: the integrand receives one sample x of shape {shape}, not a batch (the "
+                         "estimator maps it over the samples): index its coordinates as x[k] or x[..., k], not "
+                         f"x[:, k]; JAX said: {error}") from error
     layout = layout_of(value, owner)
     if layout.width == 0:
         raise ValueError(f"{owner}: the integrand must return at least one number per sample; it returns "

@@ -70,18 +70,11 @@ from ..estimators.result import Estimate
 from ..samplers.frame import Frame
 from .._core.numerics import safe_div
 from ..estimators.boundary import relative_motion, sample_flow
+from .checks import as_lights, check_scene
 
 __all__ = ["shade", "shade_grad", "STRATEGIES"]
 
 STRATEGIES = ("brdf", "light", "mis")
-
-
-def _as_tuple(lights) -> tuple:
-    if isinstance(lights, (list, tuple)):
-        if not lights:
-            raise ValueError("shade: parameter 'lights' must hold at least one light")
-        return tuple(lights)
-    return (lights,)
 
 
 def mis_weight(own_pdf, other_pdf, exponent: float):
@@ -301,7 +294,20 @@ def _boundary_jvp(strategy, mode, exponent, rims, primals, tangents):
 _with_boundary_term.defjvp(_boundary_jvp, symbolic_zeros=True)
 
 
-@compiled_entry("n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype")
+def _check_shade(arguments):
+    check_scene("shade", *(arguments[name] for name in ("point", "normal", "wo", "brdf", "lights")))
+
+
+def _check_shade_grad(arguments):
+    scene = arguments["make"](arguments["params"])
+    if not isinstance(scene, (tuple, list)) or len(scene) != 5:
+        raise ValueError("shade_grad: parameter 'make' must return (point, normal, wo, brdf, lights); got "
+                         f"{type(scene).__name__}")
+    check_scene("shade_grad", *scene)
+
+
+@compiled_entry("n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype",
+                check=_check_shade)
 def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: str = "mis",
           mode: str = "attached", heuristic: str = "power", beta: float | None = None, uniforms="random",
           mesh=None, chunk_size: int | None = None, dtype=None) -> Estimate:
@@ -309,7 +315,10 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
 
     Args:
       point, normal, wo: 3-vectors in world space; `normal` and `wo` (pointing away from the
-        surface, toward the viewer) are normalized here. L_o is 0 when wo is below the surface.
+        surface, toward the viewer) are normalized here. A concrete scene is checked before anything
+        runs (`jaxsample.scene.checks`): a zero-length normal or wo, a wo below the surface, a point
+        inside a sphere light or behind every one-sided light is a ValueError; traced, a wo below the
+        surface gives L_o = 0 and a point inside a sphere light NaN.
       brdf: `Lambertian`, `Phong`, `RoughConductor`, or any pytree with `eval(wo, wi)`,
         `sample(wo, u)` and `pdf(wo, wi)` in the local shading frame (normal +z), densities over
         solid angle.
@@ -363,7 +372,7 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
     `boundary=False` leaves the term out (a biased gradient), only so that the report can measure
     what the term costs."""
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
-    shading = _Shading(point, normal, wo, brdf, _as_tuple(lights), mode)
+    shading = _Shading(point, normal, wo, brdf, as_lights("shade", lights), mode)
     exponent = heuristic_exponent("shade", heuristic, beta)
 
     def brdf_values(u, weighted):
@@ -421,7 +430,8 @@ def _rim_uniforms(seed, rims):
     return jnp.stack(columns, axis=-1) if columns else jnp.zeros(seed.shape + (0,), seed.dtype)
 
 
-@compiled_entry("make", "n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype")
+@compiled_entry("make", "n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype",
+                check=_check_shade_grad)
 def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, strategy: str = "mis",
                mode: str = "attached", heuristic: str = "power", beta: float | None = None, uniforms="random",
                mesh=None, chunk_size: int | None = None, dtype=None) -> Estimate:

@@ -186,6 +186,11 @@ class QuadLight(Pytree):
         from ..edges.regions import SphericalPolygon
         return SphericalPolygon(self.vertices() - jnp.asarray(point))
 
+    def behind(self, point):
+        """Whether `point` lies strictly behind the emitting face, (point - corner)·(edge_u × edge_v) < 0
+        (in the quad's plane it is not: turning the quad turns its face toward it)."""
+        return _dot(jnp.asarray(point) - jnp.asarray(self.corner), self._normal()) < 0
+
     def _front(self, wi):
         return _dot(wi, self._normal()) < 0
 

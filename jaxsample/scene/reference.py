@@ -33,6 +33,7 @@ from ..quadrature import gauss_legendre_nodes_weights
 from .._core.pytree import to_float64
 from .environment import EnvironmentMap, direction_from_uv
 from .sky import ConstantSky
+from .checks import check_scene
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight
 from .quad_light import QuadLight
@@ -175,7 +176,7 @@ def reference_radiance(point, normal, wo, brdf, lights, *, panels: int = 64, ord
     `panels` Gauss–Legendre panels of `order` nodes along the polar coordinate (per texel row
     group for environment maps) and `azimuth` midpoint nodes around. Concrete inputs only.
     """
-    lights = tuple(lights) if isinstance(lights, (list, tuple)) else (lights,)
+    lights = check_scene("reference_radiance", point, normal, wo, brdf, lights)
     with jax.enable_x64(True):
         point, normal, wo = (jnp.asarray(np.asarray(v, np.float64)) for v in (point, normal, wo))
         brdf = to_float64(brdf)

@@ -25,9 +25,8 @@ class SphereLight(Pytree):
     would be 0). The same cone decides membership in `pdf` and `radiance_from`, so the light
     sampling density and the radiance seen by other strategies agree on one support.
 
-    The light is transparent (no occlusion anywhere in this scene layer) and a point inside the
-    sphere is outside the documented range (s is clamped to 1: the light then covers a hemisphere,
-    which is wrong but finite). Parameters: `radius` > 0, `radiance` >= 0 (checked when concrete);
+    The light is transparent (no occlusion anywhere in this scene layer). A point inside or on the
+    sphere is outside the range: `shade` refuses a concrete one, and a traced one gives NaN. Parameters: `radius` > 0, `radiance` >= 0 (checked when concrete);
     `center` a 3-vector. All three may be traced and differentiated: attached light samples move
     with the sphere.
     """
@@ -36,10 +35,17 @@ class SphereLight(Pytree):
     radius: jax.Array = parameter(0.0, low_open=True)
     radiance: jax.Array = parameter(0.0)
 
-    def sin2_theta_max(self, point):
-        """sin² of the cone's half-angle from `point`: r²/d², clamped to 1 (inside the sphere)."""
+    def contains(self, point):
+        """Whether `point` lies inside or on the sphere, d <= r (outside the shading range)."""
         offset = jnp.asarray(self.center) - point
-        return jnp.minimum(self.radius * self.radius / jnp.sum(offset * offset, axis=-1), 1.0)
+        return jnp.sum(offset * offset, axis=-1) <= self.radius * self.radius
+
+    def sin2_theta_max(self, point):
+        """sin² of the cone's half-angle from `point`: r²/d², and NaN for a point inside or on the
+        sphere (d <= r), where the light covers no cone; a concrete such point is refused by `shade`."""
+        offset = jnp.asarray(self.center) - point
+        ratio = self.radius * self.radius / jnp.sum(offset * offset, axis=-1)
+        return jnp.where(ratio < 1.0, ratio, jnp.nan)
 
     def sampler(self, point: jax.Array) -> Oriented:
         """The cone of directions the sphere covers from `point`, as a directional sampler."""
@@ -70,6 +76,7 @@ class SphereLight(Pytree):
         return self.sampler(point).pdf(wi)
 
     def radiance_from(self, point, wi):
-        """L where `wi` lies in the cone (the ray hits the sphere), 0 elsewhere."""
-        inside = self.sampler(point).pdf(wi) > 0
-        return jnp.where(inside, self.radiance, 0.0).astype(jnp.result_type(wi, float))
+        """L where `wi` lies in the cone (the ray hits the sphere), 0 elsewhere; NaN for a point inside
+        or on the sphere (outside the range: no cone)."""
+        radiance = jnp.where(self.sampler(point).pdf(wi) > 0, self.radiance, 0.0)
+        return jnp.where(self.contains(point), jnp.nan, radiance).astype(jnp.result_type(wi, float))

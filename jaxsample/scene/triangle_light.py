@@ -148,6 +148,11 @@ class TriangleLight(Pytree):
         a, b, c = (jnp.asarray(v) - point for v in (self.a, self.b, self.c))
         return SphericalTriangleRegion(a, b, c)
 
+    def behind(self, point):
+        """Whether `point` lies strictly behind the emitting face, (point - a)·((b - a) × (c - a)) < 0
+        (in the triangle's plane it is not: moving a vertex turns the face toward it)."""
+        return jnp.sum((jnp.asarray(point) - jnp.asarray(self.a)) * self.triangle._normal()[0], axis=-1) < 0
+
     def _face_radiance(self, wi, dtype):
         cos_light = jnp.sum(wi * self.triangle._normal()[0], axis=-1)
         return jnp.where(cos_light < 0, self.radiance, 0.0).astype(dtype)
