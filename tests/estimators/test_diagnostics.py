@@ -25,36 +25,39 @@ def _gpd_fit_numpy(x: np.ndarray) -> float:
     over a fine grid of θ = -ξ/σ (no Zhang-Stephens weighting, no prior), for exceedances x > 0."""
     x = np.sort(np.asarray(x, np.float64))
     n = x.size
-    # θ < 1/max x; heavy tails have θ < 0. A log-spaced grid on both sides of 0.
+    # θ < 1/max x; heavy tails have θ < 0. A log-spaced grid on both sides of 0, ascending, 400
+    # points a decade below 0. At shape 0.9 the maximum lies below θ max x = -1e4 for 1 % of tails,
+    # below -1e5 for 0.05 % and never below -1e6 in 10^4 of them (simulated): the grid reaches -1e10.
     scale = 1.0 / x[-1]
-    grid = np.concatenate([-np.logspace(-6, 4, 4000) * scale, (1.0 - np.logspace(-6, 0, 2000)[::-1]) * scale])
+    grid = np.concatenate([-np.logspace(10, -6, 6400) * scale, (1.0 - np.logspace(-6, 0, 2000)[::-1]) * scale])
     xi = np.mean(np.log1p(-grid[:, None] * x[None]), axis=1)
     profile = n * (np.log(-grid / xi) - xi - 1.0)
-    return float(xi[np.nanargmax(profile)])
+    best = np.nanargmax(profile)
+    assert 0 < best < grid.size - 1, "the profile's maximum is at the end of the grid"
+    return float(xi[best])
 
 
 @pytest.mark.parametrize("shape", [0.2, 0.5, 0.9])
 def test_khat_recovers_known_pareto_shapes_and_agrees_with_an_independent_fit(shape):
-    """Y = u^(-ξ), u uniform, has a Pareto tail of shape ξ exactly. Over 24 independent sets of
-    2^14 values: the mean k-hat (64 or more tail values each, the PSIS prior shrinking it towards
-    0.5 by 10/(M + 10)) is within 0.06 of the shape, and each k-hat within 0.08 of a float64
-    maximum-likelihood fit of the same tail written here (before the prior's shrinkage).
+    """Y = u^(-ξ), u uniform, has a Pareto tail of shape ξ exactly. Over 96 independent sets of
+    2^14 values: the mean k-hat (M = 256 tail values each, the PSIS prior shrinking it towards 0.5
+    by 10/(M + 10)) is within 0.06 of the shape; and in the first 24 sets each k-hat is within
+    0.08 of a float64 maximum-likelihood fit of the same tail written here (before the prior's
+    shrinkage).
 
-    FFR for fresh seeds (simulated): the mean of 24 k-hats (M = 256) has sd 0.015, 0.019 and 0.024 at
-    shapes 0.2, 0.5 and 0.9, so the 0.06 band fails with probability 1e-4, 1.5e-3 and 1.2e-2; at 0.9
-    the reference fit's grid (θ down to -1e4 / max x) also misses the profile's maximum in about 1 %
-    of tails, which failed 28 of 130 fresh seeds: FFR about 0.2 for that case."""
+    FFR 2e-6 for fresh seeds (simulated, 10^4 sets per shape): one k-hat has sd 0.073, 0.090 and
+    0.112 and mean shape + 0.004, + 0.000 and - 0.007 at shapes 0.2, 0.5 and 0.9, so the mean of 96
+    is 7.6, 6.5 and 4.7 sd inside the 0.06 band (normal tails: 2e-6 at 0.9, below 1e-10 at the
+    others). The k-hat and the fit differed by 0.025 at most (the band is 0.08), with the fit's grid
+    of θ reaching 1e4 times beyond the farthest maximum seen (`_gpd_fit_numpy`)."""
     rng = np.random.default_rng(int(shape * 10))
     m = diagnostics.tail_size(N)
-    estimates = []
-    for _ in range(24):
-        y = rng.uniform(size=N) ** (-shape)
-        top = np.sort(y)[::-1][: m + 1]
-        khat = float(diagnostics.pareto_khat(jnp.asarray(top, jnp.float32)[:, None], m)[0])
+    tops = np.stack([np.sort(rng.uniform(size=N) ** (-shape))[::-1][: m + 1] for _ in range(96)], axis=1)
+    estimates = np.asarray(diagnostics.pareto_khat(jnp.asarray(tops, jnp.float32), m), np.float64)
+    for khat, top in zip(estimates[:24], tops[:, :24].T):
         mle = _gpd_fit_numpy(top[:m] - top[m])
         shrunk = (m * mle + 10 * 0.5) / (m + 10)
         assert abs(khat - shrunk) < 0.08, (khat, shrunk)
-        estimates.append(khat)
     expected = (m * shape + 10 * 0.5) / (m + 10)
     assert abs(np.mean(estimates) - expected) < 0.06, (np.mean(estimates), expected)
 
@@ -70,13 +73,43 @@ def test_khat_of_exact_generalized_pareto_quantiles():
             assert abs(khat - (m * shape + 5) / (m + 10)) < 0.03, (m, shape, khat)
 
 
+def _top_two_per_bin(y: np.ndarray, bins: np.ndarray, keep: int) -> np.ndarray:
+    """The `keep` largest of the values that are among the two largest of their bin (descending)."""
+    order = np.lexsort((-y, bins))
+    sorted_bins = bins[order]
+    starts = np.r_[True, sorted_bins[1:] != sorted_bins[:-1]]
+    position = np.arange(len(y))
+    rank = position - np.maximum.accumulate(np.where(starts, position, 0))
+    return np.sort(y[order][rank < 2])[::-1][:keep]
+
+
+def _chunked_tail(chunks: list, bins: int, keep: int) -> np.ndarray:
+    """`chunk_tail` / `merge_tails` / `largest` as documented, written out in NumPy: value i of a
+    chunk goes to bin i mod `bins`, each bin keeps the two largest |Y| of all chunks, and the `keep`
+    largest of those are returned (descending)."""
+    y = np.abs(np.concatenate(chunks))
+    return _top_two_per_bin(y, np.concatenate([np.arange(len(c)) % bins for c in chunks]), keep)
+
+
+def _no_triple(chunks: list, bins: int, keep: int) -> bool:
+    """Whether no bin holds three of the `keep` largest |Y|."""
+    y = np.abs(np.concatenate(chunks))
+    b = np.concatenate([np.arange(len(c)) % bins for c in chunks])
+    return np.bincount(b[np.argsort(y)[::-1][:keep]], minlength=bins).max() < 3
+
+
 def test_tail_state_holds_the_largest_values():
-    """`chunk_tail` / `merge_tails` / `largest` return exactly the M + 1 largest |Y| unless three
-    of them share a bin: over chunks of every length (padded ones included) with the default
-    bins, and with 64 bins for the 8 largest of 5000 (nine seeds with no triple; keeping only
-    each bin's maximum fails on five of them). The seeds are chosen, not drawn: for a fresh seed a
-    triple among the 8 largest in 64 bins has probability 1.2 % (among the 65 largest in 8192 bins,
-    3e-4), so nine fresh seeds would fail a correct tail state with probability 0.10."""
+    """`chunk_tail` / `merge_tails` / `largest` return exactly the state written out in NumPy
+    (`_chunked_tail`: the largest values among the bins' top two), which is the M + 1 largest |Y|
+    unless three of them share a bin: over chunks of every length (padded ones included) with the
+    default bins (the 65 largest of 25576 Cauchy values in three chunks), and with 64 bins for the
+    8 largest of 5000 in two chunks, for 32 seeds. Where no bin holds three of them the state is
+    also compared with the exact largest values. A state that kept only each bin's maximum fails
+    wherever two of the 8 largest share a bin, for 37 % of seeds (it passes all 32 with
+    probability 4e-7).
+
+    FFR 0: every comparison is exact for every seed (a triple in a bin, 1.2 % of seeds at 64 bins
+    and 3e-4 at 8192, is compared with the written-out state only)."""
     rng = np.random.default_rng(3)
     y = rng.standard_cauchy(size=3 * diagnostics.BINS + 1000).astype(np.float32)
     chunks = np.split(y, [5000, 2 * diagnostics.BINS + 5000])
@@ -84,12 +117,19 @@ def test_tail_state_holds_the_largest_values():
     for chunk in chunks:
         state = diagnostics.merge_tails(state, diagnostics.chunk_tail(jnp.asarray(chunk)))
     keep = 65
-    np.testing.assert_array_equal(np.asarray(diagnostics.largest(state, keep)), np.sort(np.abs(y))[::-1][:keep])
-    for seed in range(9):
+    held = np.asarray(diagnostics.largest(state, keep))
+    np.testing.assert_array_equal(held, _chunked_tail(chunks, diagnostics.BINS, keep))
+    if _no_triple(chunks, diagnostics.BINS, keep):
+        np.testing.assert_array_equal(held, np.sort(np.abs(y))[::-1][:keep])
+    held_of = jax.jit(lambda a, b: diagnostics.largest(diagnostics.merge_tails(diagnostics.chunk_tail(a, 64),
+                                                                              diagnostics.chunk_tail(b, 64)), 8))
+    for seed in range(32):
         y = np.random.default_rng(seed).standard_cauchy(size=5000).astype(np.float32)
-        state = diagnostics.merge_tails(diagnostics.chunk_tail(jnp.asarray(y[:3000]), 64),
-                                        diagnostics.chunk_tail(jnp.asarray(y[3000:]), 64))
-        np.testing.assert_array_equal(np.asarray(diagnostics.largest(state, 8)), np.sort(np.abs(y))[::-1][:8])
+        chunks = [y[:3000], y[3000:]]
+        held = np.asarray(held_of(*chunks))
+        np.testing.assert_array_equal(held, _chunked_tail(chunks, 64, 8), str(seed))
+        if _no_triple(chunks, 64, 8):
+            np.testing.assert_array_equal(held, np.sort(np.abs(y))[::-1][:8], str(seed))
 
 
 def _binned_tail(y: np.ndarray, chunk: int, bins: int, keep: int) -> np.ndarray:
@@ -98,12 +138,7 @@ def _binned_tail(y: np.ndarray, chunk: int, bins: int, keep: int) -> np.ndarray:
     group goes to bin r mod bins, each bin keeps its two largest values, and the `keep` largest of
     those are fitted (descending)."""
     index = np.arange(len(y))
-    b = ((index % chunk) // 4) % bins
-    order = np.lexsort((-y, b))
-    sorted_bins = b[order]
-    starts = np.r_[True, sorted_bins[1:] != sorted_bins[:-1]]
-    rank = index - np.maximum.accumulate(np.where(starts, index, 0))
-    return np.sort(y[order][rank < 2])[::-1][:keep]
+    return _top_two_per_bin(y, ((index % chunk) // 4) % bins, keep)
 
 
 def test_streamed_khat_is_the_fit_to_the_samples_averaged():
@@ -185,16 +220,22 @@ def test_oriented_lobes_are_not_flagged():
 
 def test_infinite_variance_and_divergent_integrals_are_flagged():
     """∫_H² cos θ with PhongLobe(20): f/p ∝ cos^-19 has tail index 21/19 (finite mean, infinite
-    variance); ∫_H² 1/(1 - cos θ) diverges (tail index 1). Both flagged; cosine sampling of
-    cos θ is not.
+    variance); ∫_H² 1/(1 - cos θ) diverges (tail index 1). Over 8 keys each: the mean k-hat
+    is above 0.7 (the mean itself unreliable) and at most one estimate is left unflagged;
+    cosine sampling of cos θ is not flagged.
 
-    FFR 0.06: k-hat of 256 tail values has sd 0.11-0.12 here and is 0.7 or below for 5 % of keys
-    at tail index 21/19 and 1 % at tail index 1 (simulated; 5 % and 1.2 % over 2000 keys of
-    `estimate`)."""
+    FFR 4e-6, simulated over 10^5 keys of `estimate`: one k-hat has mean 0.884 and sd 0.113 (Phong)
+    and 0.974 and 0.119 (divergent), so the mean of 8 is 0.7 or below for 1.6e-6 and below 1e-7 of
+    key sets (10^7 resampled sets); a single estimate is unflagged (k-hat < 0.5) for 2.8e-4 and
+    2e-5 of keys, two of 8 for 2.2e-6 and 1e-8. A verdict that ignored k-hat leaves all 8 unflagged."""
     for f, sampler in ((lambda w: w[2], js.PhongLobe(20.0)),
                        (lambda w: 1.0 / (1.0 - w[2]), js.UniformHemisphere())):
-        est = js.estimate(f, sampler, next_key(), N)
-        assert float(est.khat) > 0.7 and not bool(est.reliable)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", js.UnreliableEstimateWarning)
+            estimates = [js.estimate(f, sampler, next_key(), N) for _ in range(8)]
+        khat = np.array([float(est.khat) for est in estimates])
+        reliable = np.array([bool(est.reliable) for est in estimates])
+        assert np.mean(khat) > 0.7 and np.sum(reliable) <= 1, (khat, reliable)
     assert bool(js.estimate(lambda w: w[2], js.CosineHemisphere(), next_key(), N).reliable)
 
 
@@ -283,13 +324,23 @@ def test_an_unreliable_eager_estimate_warns_and_a_jitted_one_does_not():
 
 
 def test_estimate_until_carries_the_same_verdict():
-    """`estimate_until` streams the same tail: the infinite-variance program is flagged there too,
-    and the honest one is not. FFR 0.05: the first one's k-hat is 0.7 or below for 5 % of keys
-    (as in test_infinite_variance_and_divergent_integrals_are_flagged)."""
-    bad = js.estimate_until(lambda w: w[2], js.PhongLobe(20.0), next_key(), max_n=N, rtol=1e-9, chunk_size=4096)
+    """`estimate_until` streams the same tail: the infinite-variance program is flagged there too
+    (over 8 keys: mean k-hat above 0.7, at most one estimate unflagged), and the honest one is not.
+
+    FFR 4e-6, as in test_infinite_variance_and_divergent_integrals_are_flagged (the same samples):
+    over 5 x 10^4 simulated keys of this `estimate_until` k-hat had mean 0.883 and sd 0.113 and was
+    below 0.5 for 1.8e-4 of keys, so the mean of 8 is 0.7 or below for 1.7e-6 of key sets (10^7
+    resampled) and two of 8 are unflagged for about 2e-6. The honest one's f/p = π u is uniform:
+    its k-hat had mean -0.92 and sd 0.06 over 2000 keys, 15 sd below 0."""
+    f, lobe = (lambda w: w[2]), js.PhongLobe(20.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", js.UnreliableEstimateWarning)
+        bad = [js.estimate_until(f, lobe, next_key(), max_n=N, rtol=1e-9, chunk_size=4096) for _ in range(8)]
     good = js.estimate_until(lambda w: w[2] ** 3, js.CosineHemisphere(), next_key(), max_n=N, rtol=1e-9,
                              chunk_size=4096)
-    assert float(bad.khat) > 0.7 and not bool(bad.reliable)
+    khat = np.array([float(est.khat) for est in bad])
+    reliable = np.array([bool(est.reliable) for est in bad])
+    assert np.mean(khat) > 0.7 and np.sum(reliable) <= 1, (khat, reliable)
     assert bool(good.reliable) and float(good.khat) < 0.0
 
 
