@@ -126,7 +126,7 @@ def test_cone_constructors_have_finite_derivatives_at_the_hard_cases(dtype):
     cone's derivatives in 1 - cos θ_max at those caps, every constructor's derivatives are finite."""
     constructors = {
         "from_solid_angle": (js.UniformCone.from_solid_angle, [1e-8, 1e-3, 2 * np.pi, 4 * np.pi]),
-        "from_sin2": (js.UniformCone.from_sin2, [1e-8 / np.pi, 0.5]),
+        "from_sin2": (js.UniformCone.from_sin2, [1e-8 / np.pi, 0.5, 1.0]),  # 1: the hemisphere
         "from_angle": (js.UniformCone.from_angle, [1e-4, 0.5, np.pi / 2, np.pi]),
         "cos_theta_max": (js.UniformCone, [-1.0, 0.0, 0.999]),
     }

@@ -136,12 +136,14 @@ def test_sphere_light_cone_is_the_set_of_rays_hitting_the_sphere():
     assert np.array_equal(inside, np.asarray(SPHERE.pdf(POINT, dirs)) > 0)
 
 
-def test_triangle_light_density_is_the_area_to_solid_angle_jacobian():
+@pytest.mark.parametrize("sampling", ["area", "solid_angle"])
+def test_triangle_light_density_is_the_area_to_solid_angle_jacobian(sampling):
     """pdf_ω (from the ray–triangle hit) times the warp's autodiff Jacobian is 1, in float64;
-    directions that miss the triangle have density 0."""
+    directions that miss the triangle have density 0. For both light samplings: area sampling's
+    density is the area density 1/A times the Jacobian d²/|cos θ_l| of the area-to-solid-angle map."""
     with jax.enable_x64(True):
         light = scene.TriangleLight(*(jnp.asarray(v, jnp.float64) for v in (TRIANGLE.a, TRIANGLE.b, TRIANGLE.c)),
-                                    5.0)
+                                    5.0, sampling=sampling)
         sampler = light.sampler(jnp.asarray([0.2, -0.1, 0.0], jnp.float64))
         u = jnp.asarray(np.random.default_rng(1).uniform(0.01, 0.99, (256, 2)))
 
