@@ -1473,6 +1473,11 @@ MUTATIONS = [
       "    except IndexError as error:", "    except ZeroDivisionError as error:",
       ("tests/scene/test_scene_checks.py::test_an_integrand_written_for_a_batch_is_told_it_receives_one_sample",),
       "an integrand indexed as a batch gets JAX's IndexError, not that f receives one sample"),
+    M("test-keys-from-a-shared-counter", "tests/keyring.py",
+      "return jax.random.fold_in(fixed_key(node), count)",
+      "return jax.random.fold_in(fixed_key(\"shared\"), sum(_drawn.values()))",
+      ("tests/test_hermetic_keys.py::test_a_tests_keys_do_not_depend_on_what_ran_before",),
+      "test keys drawn from state shared across tests: a test's numbers depend on what ran before it"),
 ]
 
 
