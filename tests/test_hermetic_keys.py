@@ -1,6 +1,6 @@
 """A test's keys come from its own identity, never from state shared across tests.
 
-Keys drawn from a module-level iterator (``KEYS = iter(jax.random.split(...))``, ``next(KEYS)``)
+Keys drawn from a module-level iterator (``KEYS = iter(...)`` over split keys, then ``next(KEYS)``)
 make a test's numbers depend on which tests of its module ran before it on the same worker: a
 statistical test then passes in one order and fails in another. `tests/keyring.py` derives each
 test's keys from its node id instead; these tests hold the suite to that.
@@ -39,7 +39,7 @@ def module_level_iterators(source: str) -> list[str]:
 
 
 def test_the_scan_finds_a_shared_iterator():
-    source = ("import itertools, jax\nKEYS = iter(jax.random.split(jax.random.key(0), 8))\n"
+    source = ("import itertools, jax\nKEYS = iter(list(jax.random.split(jax.random.key(0), 8)))\n"
               "SEEDS = itertools.count(1000)\nGEN = (k for k in range(3))\nN = 1 << 14\n"
               "CASES = [c for c in range(4) if any(d > c for d in range(3))]\n")
     assert module_level_iterators(source) == ["KEYS", "SEEDS", "GEN"]
