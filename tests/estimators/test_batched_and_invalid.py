@@ -1,6 +1,6 @@
-"""A JAX user's first hour with the estimators (issue 14): keys, batched estimates, MIS inputs
-that cannot be combined, and invalid traced parameters. Each test failed on the code before
-issue 14; all are exact or structural but one 6-stderr check (FFR 2e-9, stated beside it).
+"""A JAX user's first hour with the estimators: keys, batched estimates, MIS inputs that cannot
+be combined, and invalid traced parameters. All are exact or structural but one 6-stderr check
+(FFR 2e-9, stated beside it).
 """
 
 from __future__ import annotations
