@@ -170,9 +170,10 @@ def _object_array(items, shape) -> np.ndarray:
 
 
 class _Evaluator:
-    def __init__(self, lane_shape: tuple[int, ...], strict: bool = False):
+    def __init__(self, lane_shape: tuple[int, ...], strict: bool = False, token=None):
         self.lane_shape = lane_shape
         self.strict = strict
+        self.token = token
 
     # -- conversions --------------------------------------------------------------------------
 
@@ -379,7 +380,10 @@ def _stack(ev, eqn, inputs):
 def _unstack(ev, eqn, inputs):
     cells = inputs[0].cells
     axis = eqn.params["axis"]
-    return [_Lanes(np.take(cells, i, axis=axis), v.aval.dtype) for i, v in enumerate(eqn.outvars)]
+    # Unstacking a vector gives scalars: np.take returns the element itself there, not a 0-d array.
+    parts = [np.take(cells, i, axis=axis) for i in range(len(eqn.outvars))]
+    parts = [p if isinstance(p, np.ndarray) else _object_array([p], ()) for p in parts]
+    return [_Lanes(p, v.aval.dtype) for p, v in zip(parts, eqn.outvars)]
 
 
 def _tile(ev, eqn, inputs):
@@ -515,8 +519,12 @@ def _stored_once(ev, eqn, inputs):
     flat = [ev.lane(c) for x in lanes for c in x.cells.reshape(-1)]
     if not flat:
         return list(inputs)
-    first = flat[0].reshape(-1)[0]
-    tok = lax.bitcast_convert_type(first, jnp.uint32 if first.dtype.itemsize == 4 else jnp.uint64)
+    tok = ev.token
+    if tok is None:
+        # A token from the values themselves: cheap, but it reads one element of each, which gives
+        # their producers a second consumer (see `lane_map`'s `token`).
+        first = flat[0].reshape(-1)[0]
+        tok = lax.bitcast_convert_type(first, jnp.uint32 if first.dtype.itemsize == 4 else jnp.uint64)
     stored = iter(computed_once(flat, tok))
     out = []
     for x in inputs:
@@ -527,6 +535,16 @@ def _stored_once(ev, eqn, inputs):
             out.append(x)
     return out
 
+
+def _add_any():
+    try:
+        from jax._src.ad_util import add_jaxvals_p
+    except ImportError:
+        return None
+    return add_jaxvals_p if isinstance(add_jaxvals_p, jex_core.Primitive) else None
+
+
+_ADD_ANY = _add_any()
 
 _RULES = {
     _core_stored_once_p: _stored_once,
@@ -539,10 +557,13 @@ _RULES = {
     **_keyed({"tile": _tile}, since=(0, 9, 0)),
     **_keyed({"stack": _stack, "unstack": _unstack}, since=(0, 10, 1)),
     **{prim: _reduce for prim in _REDUCERS},
+    # Reverse mode's sum of two cotangents (`jax.grad` of a per-point function, as `shade_grad`
+    # evaluates): elementwise addition.
+    **({_ADD_ANY: _elementwise} if _ADD_ANY is not None else {}),
 }
 
 
-def lane_map(fn: Callable, lane_shape, *, strict: bool = False) -> Callable:
+def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> Callable:
     """`fn` maps ONE point (arrays of any shape, a pytree) to a pytree of arrays; the result maps
     per-coordinate lanes to the same outputs over all the points, like `jax.vmap(fn)`.
 
@@ -554,11 +575,17 @@ def lane_map(fn: Callable, lane_shape, *, strict: bool = False) -> Callable:
     `strict=True` raises `LaneFallback` (naming the primitive and why) where a primitive would be
     evaluated by vmap instead of on the lanes; elementwise work on a value given or kept in the
     stacked layout is not a fallback. For tests and for checking that an integrand stays fast.
+
+    `token`: a traced integer scalar for the values `stored_once` marks (`computed_once`'s token),
+    e.g. the streaming engine's chunk offset. Without one, the token is read from the stored values,
+    and the single element read is a second consumer of everything they are computed from, which
+    XLA's CPU fusion then materializes array by array (a gradient's per-point program split into
+    20 loops that way).
     """
     lane_shape = (lane_shape,) if isinstance(lane_shape, (int, np.integer)) else tuple(lane_shape)
 
     def mapped(*args):
-        ev = _Evaluator(lane_shape, strict)
+        ev = _Evaluator(lane_shape, strict, token)
         specs, inputs = [], []
         for a in args:
             if isinstance(a, (tuple, list)):

@@ -34,23 +34,19 @@ def clamp_unit_interval(u: jax.Array) -> jax.Array:
     return jnp.clip(u, 0.0, one_minus_epsilon(u.dtype))
 
 
-@jax.custom_jvp
 def safe_sqrt(x: jax.Array) -> jax.Array:
     """sqrt(max(x, 0)); derivative 1/(2 sqrt x) for x > 0 and 0 for x <= 0 (never NaN or inf).
+    A NaN argument gives NaN.
 
-    A custom JVP rather than a double where: the value needs no guard (sqrt(0) = 0), only the
-    derivative does, so the forward pass, which every sampler runs, is one max and one sqrt.
-    A NaN argument gives NaN (a double where would turn it into 0).
+    Written with selects, not a custom JVP: the sqrt is taken of x where x > 0 and of 1 elsewhere,
+    so its derivative is finite on both sides of the select. A custom JVP rule is opaque to the
+    per-coordinate evaluation of `jaxsample._core.lanes`, which then stacks the value and everything
+    computed from it; the gradient of `shade` had its per-sample program split into dozens of loops
+    that way.
     """
-    return jnp.sqrt(jnp.maximum(x, 0.0))
-
-
-@safe_sqrt.defjvp
-def _safe_sqrt_jvp(primals, tangents):
-    (x,), (dx,) = primals, tangents
-    root = safe_sqrt(x)
     positive = x > 0
-    return root, jnp.where(positive, 0.5 * dx / jnp.where(positive, root, 1.0), 0.0)
+    root = jnp.sqrt(jnp.where(positive, x, 1.0))
+    return jnp.where(positive, root, jnp.where(x <= 0, jnp.zeros_like(root), x))
 
 
 def safe_acos(x: jax.Array) -> jax.Array:

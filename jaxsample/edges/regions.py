@@ -126,33 +126,43 @@ def _polygon_indicator(vertices, x):
 
 def _polygon_boundary(vertices, t):
     """(y, outward normal, arc-length density) on a convex spherical polygon's perimeter, uniformly by
-    arc length: an edge in proportion to its length, then a point along its great circle (slerp)."""
+    arc length: an edge in proportion to its length, then the point at arc length φ along it,
+    y = cos φ · start + sin φ · w (w the unit tangent of the great circle at `start`, toward `end`).
+
+    What depends on the point drawn is only the edge's choice and one sine and cosine: the edges'
+    vertices, tangents, lengths and normals are shared by every point (they depend on the polygon
+    alone), and (sin φ, cos φ) come from `sincos_2pi` (polynomials; XLA's CPU sine is several times
+    the cost, and per edge it was the bulk of a boundary term's derivative).
+    """
     count = vertices.shape[0]
-    lengths = [_arc_angle(vertices[k], vertices[(k + 1) % count]) for k in range(count)]
-    perimeter = sum(lengths)
-    position = t[..., 0] * perimeter
-    y, normal, start_length = None, None, 0.0
+    edges = []
+    start_length = 0.0
     for k in range(count):
         start, end = vertices[k], vertices[(k + 1) % count]
         opposite = vertices[(k + 2) % count]
-        angle = lengths[k]
-        fraction = jnp.clip(safe_div(position - start_length, angle), 0.0, 1.0)
-        sin_angle = jnp.sin(angle)
-        point = (safe_div(jnp.sin((1.0 - fraction) * angle), sin_angle)[..., None] * start
-                 + safe_div(jnp.sin(fraction * angle), sin_angle)[..., None] * end)
+        angle = _arc_angle(start, end)
         # An arc of length 0 or π (the viewpoint on an edge's line) has no great-circle plane: its
-        # normal is taken as 0, so it adds nothing (a measure-zero configuration) instead of NaN.
+        # normal and tangent are taken as 0, so it adds nothing (a measure-zero configuration)
+        # instead of NaN.
         cross = jnp.cross(start, end)
         length = _norm(cross)[..., None]
         plane = cross / jnp.where(length > 0, length, 1.0)
         side = jnp.sign(jnp.sum(plane * opposite, axis=-1))
-        edge_normal = -side[..., None] * plane * jnp.ones_like(point)
-        if y is None:
-            y, normal = point, edge_normal
-        else:
-            here = (position >= start_length)[..., None]
-            y, normal = jnp.where(here, point, y), jnp.where(here, edge_normal, normal)
+        tangent = jnp.cross(plane, start)
+        edges.append((start, tangent, angle, -side[..., None] * plane, start_length))
         start_length = start_length + angle
+    perimeter = start_length
+    position = t[..., 0] * perimeter
+    chosen = None
+    for start, tangent, angle, normal, offset in edges:
+        here = (position >= offset)[..., None]
+        values = (start, tangent, angle[..., None], normal, jnp.asarray(offset)[..., None])
+        values = [v * jnp.ones_like(position)[..., None] for v in values]
+        chosen = values if chosen is None else [jnp.where(here, v, c) for v, c in zip(values, chosen)]
+    start, tangent, angle, normal, offset = chosen
+    arc = jnp.clip(position[..., None] - offset, 0.0, angle)
+    sin_arc, cos_arc = sincos_2pi(arc * np.float32(1.0 / (2.0 * np.pi)))
+    y = cos_arc * start + sin_arc * tangent
     pdf = safe_div(1.0, perimeter) * jnp.ones_like(t[..., 0])
     return y, normal, pdf
 

@@ -38,8 +38,13 @@ dependent; the stderr is then the standard deviation of the R replicate means ov
 
 Gradients (`mode`, Zeltner et al. 2021): "attached" differentiates through the sample and its
 density (pathwise); "detached" applies `stop_gradient` to the sample and its density *together*,
-so only f carries the derivative. Chunks are `jax.checkpoint`ed, so reverse mode recomputes a
-chunk instead of storing it: gradient memory does not grow with n either.
+so only f carries the derivative. The derivative of a stream is a second forward stream
+(`_differentiable_stream`): the sums of the per-point sensitivities ∂Y/∂θ_k, one per moving
+coordinate, computed by forward mode on the lanes; it needs no residuals and no reverse pass
+through the loop, so its memory does not grow with n, and it costs about one JVP of the per-point
+program. With many moving coordinates (more than `FORWARD_WIDTH`, or a device mesh) the loop is
+differentiated as written, its chunks `jax.checkpoint`ed: reverse mode recomputes a chunk instead
+of storing it.
 """
 
 from __future__ import annotations
@@ -55,7 +60,7 @@ from .._core.counts import check_count
 from .._core.params import default_float_dtype, resolve_float_dtype
 from .._core.pytree import Pytree
 from .._core import doublefloat
-from .._core.computed_once import computed_once
+from .._core.computed_once import computed_once, stored_once
 from .._core.lanes import lane_map
 from jax.custom_derivatives import SymbolicZero
 from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
@@ -233,7 +238,7 @@ def finish(m: _Moments, count, replicates: int, most: int | None = None) -> dict
     stderr = jnp.where(finite, stderr, jnp.inf)
     keep = tail_size(count if most is None else most) + 1
     return dict(mean=mean, stderr=stderr, variance=variance, max_abs=m.max_abs, ess=ess,
-                khat=pareto_khat(largest(m.tail, keep), tail_size(count)), nonzero=m.nonzero / n)
+                khat=pareto_khat(largest(jax.lax.stop_gradient(m.tail), keep), tail_size(count)), nonzero=m.nonzero / n)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -261,7 +266,7 @@ def _hoist_traced(fn, example):
     return point, [c for c, t in zip(closed.consts, traced) if t]
 
 
-def group_values(values_fn, groups, tok, stored: bool):
+def group_values(values_fn, groups, tok, stored: bool, derivative_fn=None):
     """values_fn on every group of lanes (d arrays of one shape, the points in C order; each
     result has that shape + values_fn's output shape), with a derivative rule of its own.
 
@@ -278,7 +283,9 @@ def group_values(values_fn, groups, tok, stored: bool):
     The values are the lanes program's bit for bit, the tangents to float rounding (fusion may
     contract a multiply-add differently).
 
-    `stored`: the lanes are already stored once (many outputs).
+    `stored`: the lanes are already stored once (many outputs). `derivative_fn`: a function of the
+    same values whose derivative is the one to take (values_fn plus surrogates of value 0, such as
+    `shade`'s boundary term); only the derivative evaluates it, so the value never pays for it.
     """
     sizes = [len(lanes) for lanes in groups]
     flat = [lane for lanes in groups for lane in lanes]
@@ -288,40 +295,117 @@ def group_values(values_fn, groups, tok, stored: bool):
         it = iter(flat)
         return [tuple(next(it) for _ in range(k)) for k in sizes]
 
-    # The per-point program with every traced value it closes over as an argument (traced once, on one point).
-    point, consts = _hoist_traced(lambda one: values_fn(one[None])[0], jnp.zeros((sizes[0],), flat[0].dtype))
+    example = jnp.zeros((sizes[0],), flat[0].dtype)
 
-    def by_lanes(flat, consts):
-        return [lane_map(lambda one: point(one, *consts), shape)(lanes) for lanes in regroup(flat)]
+    def lanes_program(fn):
+        """fn's lanes program as a replayable jaxpr, with every traced value fn closes over as an
+        argument (traced once, on one point; the rule below needs it again)."""
+        point, consts = _hoist_traced(lambda one: fn(one[None])[0], example)
 
-    if not any(jnp.issubdtype(c.dtype, jnp.inexact) for c in consts):
-        return by_lanes(flat, consts)  # nothing values_fn reads can carry a derivative
-    # The lanes program as a jaxpr, interpreted once and replayed (the rule below needs it again).
-    lanes_jaxpr = jax.make_jaxpr(by_lanes)(flat, list(consts))
-    replay = lambda flat, consts: jaxpr_as_fun(lanes_jaxpr)(*flat, *consts)
+        def by_lanes(flat, consts, tok):
+            return [lane_map(lambda one: point(one, *consts), shape, token=tok)(lanes) for lanes in regroup(flat)]
+
+        return by_lanes, consts, point
+
+    by_lanes, consts, point = lanes_program(values_fn)
+    d_by_lanes, d_consts, d_point, refusal = by_lanes, consts, point, None
+    if derivative_fn is not None:
+        try:
+            d_by_lanes, d_consts, d_point = lanes_program(derivative_fn)
+        except ValueError as error:
+            # A derivative the caller refuses (no way to make it unbiased) is an error when it is
+            # asked for, not when the value is.
+            refusal, d_consts = error, []
+    if not any(jnp.issubdtype(c.dtype, jnp.inexact) for c in list(consts) + list(d_consts)):
+        return by_lanes(flat, consts, tok)  # nothing values_fn reads can carry a derivative
+    lanes_jaxpr = jax.make_jaxpr(by_lanes)(flat, list(consts), tok)
+    replay = lambda flat, consts, tok: jaxpr_as_fun(lanes_jaxpr)(*flat, *consts, tok)
 
     @jax.custom_jvp
-    def values(flat, tok, consts):
-        return replay(flat, consts)
+    def values(flat, tok, consts, d_consts):
+        return replay(flat, consts, tok)
 
     def values_jvp(primals, tangents):
-        flat, tok, consts = primals
+        flat, tok, consts, d_consts = primals
         once = flat if stored else computed_once(flat, tok)
+        # The derivative program reads everything values_fn reads (the same closure): its
+        # constants' tangents are the derivative, and the value's own constants' are not needed.
+        if refusal is not None:
+            raise refusal
+        if derivative_fn is None:
+            d_consts, d_tangents = consts, tangents[2]
+        else:
+            d_tangents = tangents[3]
         # Only the constants with a tangent are differentiated: a zero tangent pushed through a
         # partial derivative that is infinite at some sample (sqrt or a fractional power at 0,
         # arccos at ±1) would be 0 · inf = NaN in the output tangent.
-        live = [not isinstance(t, SymbolicZero) for t in tangents[2]]
+        live = [not isinstance(t, SymbolicZero) for t in d_tangents]
+        moving = [c for c, m in zip(d_consts, live) if m]
+        per_point = math.prod(jax.eval_shape(lambda: d_point(example, *d_consts)).shape)
+        width = sum(int(np.size(c)) for c in moving) * per_point
+        if 0 < width <= FORWARD_WIDTH and all(jnp.issubdtype(jnp.result_type(c), jnp.floating) for c in moving):
+            d_out = _forward_tangents(d_point, example, d_consts, live, once,
+                                      [t for t, m in zip(d_tangents, live) if m], regroup, shape, tok)
+            return replay(flat, consts, tok), d_out
 
         def on_live(moving):
             it = iter(moving)
-            return replay(once, [next(it) if m else c for c, m in zip(consts, live)])
+            program = replay if derivative_fn is None else d_by_lanes
+            return program(once, [next(it) if m else c for c, m in zip(d_consts, live)], tok)
 
-        _, d_out = jax.jvp(on_live, ([c for c, m in zip(consts, live) if m],),
-                           ([t for t, m in zip(tangents[2], live) if m],))
-        return replay(flat, consts), d_out
+        _, d_out = jax.jvp(on_live, ([c for c, m in zip(d_consts, live) if m],),
+                           ([t for t, m in zip(d_tangents, live) if m],))
+        return replay(flat, consts, tok), d_out
 
     values.defjvp(values_jvp, symbolic_zeros=True)
-    return values(flat, tok, list(consts))
+    return values(flat, tok, list(consts), [] if derivative_fn is None else list(d_consts))
+
+
+# The per-point derivative is pushed forward along every coordinate of the moving constants when
+# they times the values per point are at most this many (see `_forward_tangents`).
+FORWARD_WIDTH = 16
+
+
+def _forward_tangents(point, example, consts, live, once, tangents, regroup, shape, tok):
+    """The tangent of the lanes program, Σ_k t_k S_k, with S_k = ∂Y/∂c_k the per-point
+    sensitivities to the k-th coordinate of the moving constants, computed by forward mode (the
+    per-point JVP along each coordinate, on the lanes) and stored once per chunk.
+
+    Why. The JVP rule of `group_values` is linear in the tangents; under reverse mode JAX
+    transposes it, and each primal value that transposition needs becomes its own loop in XLA's CPU
+    fusion, each recomputing the warp from the uniforms (the gradient of BRDF-sampled `shade` had
+    some 20 such loops of 170-320 operations per group, 6-10x the value's run time). Here the
+    residuals are the few arrays S_k, computed together in loops that share the warp (pairs packed by
+    `computed_once`), and the transposed rule is a sum of products with them. Worth it while
+    the moving coordinates are few (one per scalar parameter differentiated: an exponent, the
+    three of a light's centre); with more, `group_values` keeps the plain rule."""
+    out_shape = jax.eval_shape(lambda: point(example, *consts)).shape
+
+    def sensitivities(one, *values):
+        start, unravel = _ravel([v for v, m in zip(values, live) if m])
+
+        def f(coords):
+            it = iter(unravel(coords))
+            return point(one, *[next(it) if m else v for v, m in zip(values, live)])
+
+        basis = jnp.eye(start.size, dtype=start.dtype)
+        s = jax.vmap(lambda e: jax.jvp(f, (start,), (e,))[1], out_axes=-1)(basis)
+        return tuple(s.reshape(-1)[i] for i in range(s.size))
+
+    per_group = [lane_map(lambda one: sensitivities(one, *consts), shape, token=tok)(lanes) for lanes in regroup(once)]
+    stored = iter(computed_once([a for group in per_group for a in group], tok, alone=True))
+    t = _ravel(tangents)[0]
+    out = []
+    for group in per_group:
+        columns = jnp.stack([next(stored) for _ in group], axis=-1).reshape(shape + out_shape + (t.size,))
+        out.append(jnp.sum(columns * t.astype(columns.dtype), axis=-1))
+    return out
+
+
+def _ravel(arrays):
+    """The arrays' coordinates as one vector, and the map back."""
+    from jax.flatten_util import ravel_pytree
+    return ravel_pytree(list(arrays))
 
 
 # An integrand with more values per point than this has its uniforms stored once per chunk (and
@@ -354,38 +438,183 @@ def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, siz
     # group is stored too: else XLA's CPU reduction fusion (YNNPACK) takes the integrand's last
     # elementwise ops (the sum of x, y, z) into the replicate sums and leaves each operand its own
     # loop, each re-running the generator and the warp (Sobol' with UniformSphere: 3 such loops).
-    values = computed_once(group_values(values_fn, groups, token(offset), stored), token(offset), alone=True)
+    values = computed_once(group_values(values_fn, groups, token(offset), stored, getattr(values_fn, "derivative", None)),
+                           token(offset), alone=True)
     return _chunk_moments(values, source.replicates, out_shape, bins, diagnostics)
 
 
 def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,
-            chunk_size: int, out_shape, aligned: int, diagnostics: bool = True) -> _Moments:
+            chunk_size: int, out_shape, aligned: int, diagnostics: bool = True, carried=None) -> _Moments:
     """Moments of values_fn over the points with global indices [base, base + count).
 
     `aligned`: every chunk offset is a multiple of it (it lets the sources take fast paths).
     Offsets are 64-bit `Index`es when the stream passes 2^32 points (`total` > 2^32); below, they
-    are the plain uint32 offsets of a 32-bit counter (the same program, and the same points)."""
+    are the plain uint32 offsets of a 32-bit counter (the same program, and the same points).
+
+    `carried`: arrays threaded through the loop, with values_fn(carried) the block function, and the
+    loop a `while_loop`: for a stream traced inside a derivative rule (`_differentiable_stream`).
+    There, JAX's partial evaluation of a `scan` (its rule runs even when every input is known)
+    hoists each loop-invariant value out of the loop, a scan's unchanged carry included: the
+    per-point program's constants, broadcast to the chunk's lanes, became 465 chunk-sized arrays
+    that the loop read from memory (the gradient of MIS-shaded Phong under a sphere light ran 1.4x
+    slower). A while loop keeps them inside, as scalars."""
     replicates = source.replicates
     wide = total > NARROW_LIMIT
 
-    def chunk(offset: Index, size):
-        return _chunk(values_fn, source, seed, dims, dtype, offset, size, out_shape, bins, total=total,
+    def chunk(offset: Index, size, carried):
+        fn = values_fn if carried is None else values_fn(carried)
+        return _chunk(fn, source, seed, dims, dtype, offset, size, out_shape, bins, total=total,
                       aligned=aligned, diagnostics=diagnostics)
 
     bins = tail_bins(total, chunk_size)
     moments = _empty_moments(replicates, out_shape, dtype, bins)
     steps, tail = divmod(count, chunk_size)
-    if steps:
-        chunk_body = jax.checkpoint(lambda offset: chunk(offset, chunk_size))
+    if steps and carried is not None:
+        def step_of(state):
+            step, moments, carried = state
+            offset = offset_at(base, step, chunk_size, wide)
+            return step + 1, _merge(moments, chunk(offset, chunk_size, carried)), carried
+
+        _, moments, _ = jax.lax.while_loop(lambda state: state[0] < steps, step_of,
+                                           (jnp.uint32(0), moments, carried))
+    elif steps:
+        chunk_body = jax.checkpoint(lambda offset, carried: chunk(offset, chunk_size, carried))
 
         def body(state, step):
+            moments, carried = state
             offset = offset_at(base, step, chunk_size, wide)
-            return _merge(state, chunk_body(offset)), None
+            return (_merge(moments, chunk_body(offset, carried)), carried), None
 
-        moments, _ = jax.lax.scan(body, moments, jnp.arange(steps, dtype=jnp.uint32))
+        (moments, _), _ = jax.lax.scan(body, (moments, carried), jnp.arange(steps, dtype=jnp.uint32))
     if tail:
-        moments = _merge(moments, chunk(offset_at(base, steps, chunk_size, wide), tail))
+        moments = _merge(moments, chunk(offset_at(base, steps, chunk_size, wide), tail, carried))
     return moments
+
+
+def _per_point(fn, example):
+    """(point, consts): fn on one point with every tracer it closes over as an argument."""
+    return _hoist_traced(lambda one: fn(one[None])[0], example)
+
+
+def _block(point, consts):
+    """The block function of a per-point program: (count, dims) uniforms -> (count, *out) values.
+    On the one point the engine traces it with (`group_values`), it is the per-point program itself,
+    without a batch axis of size 1 through every operation."""
+    def block(u):
+        if u.shape[0] == 1:
+            return point(u[0], *consts)[None]
+        return jax.vmap(lambda one: point(one, *consts))(u)
+
+    return block
+
+
+def _differentiable_stream(values_fn, source: Source, seed, dims: int, dtype, n: int, chunk_size: int, out_shape,
+                           diagnostics: bool) -> _Moments:
+    """`_stream` over [0, n), whose derivative, when few coordinates move, is a second forward
+    stream instead of the reverse pass through the loop.
+
+    d/dθ of the moments: the sums' tangent is Σ_i ẏ_i, the M2's 2 Σ_i (y_i - ȳ) ẏ_i, Σ|Y|'s
+    Σ_i sign(y_i) ẏ_i (per replicate where the sums are), with ẏ_i = Σ_k t_k S_ik and S_ik = ∂y_i/∂c_k
+    the sensitivity of the value to the k-th moving coordinate of what values_fn closes over
+    (forward mode on one point, `_sensitivities`). So the tangent needs Σ S, Σ y S and Σ sign(y) S
+    over the stream: one streamed pass of a per-point program about the size of the value's JVP,
+    in constant memory, with no residuals and no loop to transpose. The diagnostics (max |Y|, the
+    tail, k-hat, the nonzero fraction) have zero derivative.
+
+    Why not the reverse pass. Differentiated in reverse, the loop is rematerialized chunk by chunk
+    and each primal value the transposed per-point program needs becomes its own loop in XLA's
+    CPU fusion, recomputing the warp: the gradient of a shading point ran at 10-90x its value. With
+    more moving coordinates than `FORWARD_WIDTH` (times the values per point), the forward pass
+    would cost more than that, and the derivative is the reverse pass as before.
+    """
+    example = jnp.zeros((dims,), dtype)
+    point, consts = _per_point(values_fn, example)
+    derivative_fn = getattr(values_fn, "derivative", None)
+    d_point, d_consts, refusal = point, consts, None
+    if derivative_fn is not None:
+        try:
+            d_point, d_consts = _per_point(derivative_fn, example)
+        except ValueError as error:
+            # A derivative that cannot be made unbiased is an error when it is asked for.
+            refusal, d_consts = error, []
+    if not any(jnp.issubdtype(jnp.result_type(c), jnp.inexact) for c in list(consts) + list(d_consts)):
+        return _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape, chunk_size, diagnostics)
+
+    def program(consts, d_consts, differentiated):
+        fn = _block(point, consts)
+        if differentiated and derivative_fn is not None and refusal is None:
+            fn.derivative = _block(d_point, d_consts)
+        return fn
+
+    def plain(consts, d_consts, seed, differentiated=True):
+        return _stream(program(consts, d_consts, differentiated), source, seed, dims, dtype, 0, n, n, chunk_size,
+                       out_shape, chunk_size, diagnostics)
+
+    @jax.custom_jvp
+    def moments(consts, d_consts, seed):
+        # The value: the rule below is its only derivative, so no derivative program is traced here.
+        return plain(consts, d_consts, seed, differentiated=False)
+
+    def moments_jvp(primals, tangents):
+        consts, d_consts, seed = primals
+        if refusal is not None:
+            raise refusal
+        own, own_tangents, own_point = (consts, tangents[0], point) if derivative_fn is None else \
+            (d_consts, tangents[1], d_point)
+        live = [not isinstance(t, SymbolicZero) for t in own_tangents]
+        moving = [c for c, m in zip(own, live) if m]
+        width = sum(int(np.size(c)) for c in moving) * math.prod(out_shape)
+        if not (0 < width <= FORWARD_WIDTH and all(jnp.issubdtype(jnp.result_type(c), jnp.floating) for c in moving)):
+            full = [[_instantiate(p, t) for p, t in zip(ps, ts)] for ps, ts in zip((consts, d_consts), tangents[:2])]
+            return jax.jvp(lambda c, d: plain(c, d, seed), (list(consts), list(d_consts)), tuple(full))
+        primal = moments(consts, d_consts, seed)
+        k = sum(int(np.size(c)) for c in moving)
+        aux = _stream(lambda carried: _sensitivities(point, carried[0], own_point, carried[1], live, out_shape, k),
+                      source, seed, dims, dtype, 0, n, n, chunk_size, (3,) + out_shape + (k,), chunk_size,
+                      diagnostics=False, carried=(list(consts), list(own)))
+        t = _ravel([t for t, m in zip(own_tangents, live) if m])[0].astype(dtype)
+        per_replicate = aux.sums + aux.compensation                       # (R, 3, *out, k)
+        total = jnp.sum(per_replicate, axis=0)
+        mean = jnp.sum(primal.sums + primal.compensation, axis=0) / primal.count
+        zero = jax.tree.map(jnp.zeros_like, primal)
+        return primal, _Moments(
+            sums=per_replicate[:, 0] @ t, compensation=zero.compensation,
+            m2=2.0 * ((total[1] - mean[..., None] * total[0]) @ t), max_abs=zero.max_abs,
+            sum_abs=total[2] @ t, tail=zero.tail, nonzero=zero.nonzero, count=zero.count)
+
+    moments.defjvp(moments_jvp, symbolic_zeros=True)
+    return moments(list(consts), list(d_consts), seed)
+
+
+def _instantiate(primal, tangent):
+    if not isinstance(tangent, SymbolicZero):
+        return tangent
+    if not jnp.issubdtype(jnp.result_type(primal), jnp.inexact):
+        return np.zeros(np.shape(primal), jax.dtypes.float0)
+    return jnp.zeros_like(primal)
+
+
+def _sensitivities(value_point, value_consts, point, consts, live, out_shape, k):
+    """The block function u -> (3, *out, k): S, y S and sign(y) S per point, S_k = ∂y/∂c_k the JVP
+    of the per-point program `point` along the k-th coordinate of its moving constants (see
+    `_differentiable_stream`), y the value (`value_point`: a derivative program's surrogates of value
+    0 are not evaluated for it, and where their tangent is zero XLA drops them). y and S are marked
+    `stored_once`, so that the lanes program computes them in shared loops and the products read
+    them."""
+    moving = [c for c, m in zip(consts, live) if m]
+    start, unravel = _ravel(moving)
+
+    def one(u):
+        def f(coords):
+            it = iter(unravel(coords))
+            return point(u, *[next(it) if m else c for c, m in zip(consts, live)])
+
+        s = jax.vmap(lambda e: jax.jvp(f, (start,), (e,))[1], out_axes=-1)(jnp.eye(k, dtype=start.dtype))
+        y = value_point(u, *value_consts)
+        y, s = stored_once((y, s.astype(y.dtype)))
+        return jnp.stack([s, y[..., None] * s, jnp.sign(y)[..., None] * s])
+
+    return lambda u: one(u[0])[None] if u.shape[0] == 1 else jax.vmap(one)(u)
 
 
 def combine_devices(m: _Moments, axes, per_device: int, n: int, dtype) -> _Moments:
@@ -475,8 +704,8 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
     seed = seed_from_key(key)
 
     if mesh is None:
-        moments = _stream(values_fn, source, seed, dims, dtype, 0, n, n, chunk_size, out_shape,
-                          chunk_size, diagnostics)
+        moments = _differentiable_stream(values_fn, source, seed, dims, dtype, n, chunk_size, tuple(out_shape),
+                                         diagnostics)
         return Estimate(**finish(moments, n, replicates), n=n, replicates=replicates)
 
     per_device = n // devices

@@ -40,9 +40,12 @@ other lights' samples crossing it get theirs. So every strategy and mode is unbi
 parameter of the BRDF and of these lights; `shade_grad` gives the gradient with its standard
 error, the boundary term's variance included (it rides on the same evaluation).
 
-The term is a custom JVP whose value is never computed: an estimate that is not differentiated
-costs what it would cost without the term. Lights without `silhouette` (`EnvironmentMap`, whose texel edges are fixed in
-ω, and user lights) have edges `shade` cannot sample; a gradient that would cross them is refused
+The term is the per-evaluation program's `derivative` (`values_fn.derivative`, the values plus
+surrogates of value 0), which the engine evaluates only for a derivative (`estimators.engine`): an
+estimate that is not differentiated runs exactly the program without the term.
+
+Lights without `silhouette` (`EnvironmentMap`, whose texel edges are fixed in ω, and user lights)
+have edges `shade` cannot sample; a gradient that would cross them is refused
 with a ValueError when it is asked for (the BRDF's parameters in attached "brdf"/"mis", a user
 light's own parameters outside attached light sampling of that light alone).
 """
@@ -213,25 +216,6 @@ class _Shading:
         return total
 
 
-def _boundary_surrogate(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, seed):
-    shading = _Shading(point, normal, wo, brdf, lights, mode)
-    return shading.boundary_values(_rim_uniforms(jax.lax.stop_gradient(seed), rims), strategy, exponent)
-
-
-@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1, 2, 3))
-def _with_boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf, lights, seed, values):
-    """`values` (the interior estimate's per-evaluation values), whose derivative gains the
-    silhouettes' boundary term for `strategy` and `mode`.
-
-    A custom JVP whose value is `values` itself: an estimate that is never differentiated runs
-    exactly the program without the term (the rim seed is dead code there, and XLA drops it; a
-    term of value 0 added to the values would cost 14-27 % of the value path, which XLA cannot
-    simplify away), and a
-    gradient that no term here can make unbiased is refused when it is asked for (`_refuse`), not
-    whenever `shade` runs."""
-    return values
-
-
 def _is_zero(tangent) -> bool:
     return all(isinstance(leaf, SymbolicZero)
                for leaf in jax.tree_util.tree_leaves(tangent, is_leaf=lambda v: isinstance(v, SymbolicZero)))
@@ -277,21 +261,20 @@ def _instantiate(primal, tangent):
     return jnp.zeros_like(primal)
 
 
-def _boundary_jvp(strategy, mode, exponent, rims, primals, tangents):
-    *inputs, values = primals          # point, normal, wo, brdf, lights, seed; the interior values
-    *input_tangents, values_tangent = tangents
-    _refuse(strategy, mode, inputs[4], input_tangents[:5])
-    values_tangent = _instantiate(values, values_tangent)
-    if all(_is_zero(tangent) for tangent in input_tangents) or rims == 0:
-        return values, values_tangent
-    input_tangents = jax.tree_util.tree_map(lambda t, p: _instantiate(p, t), tuple(input_tangents), tuple(inputs),
-                                            is_leaf=lambda v: isinstance(v, SymbolicZero))
-    _, tangent = jax.jvp(functools.partial(_boundary_surrogate, strategy, mode, exponent, rims),
-                         tuple(inputs), input_tangents)
-    return values, values_tangent + tangent
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0, 1))
+def _guarded(strategy, mode, point, normal, wo, brdf, lights):
+    """The scene itself, whose derivative is refused (`_refuse`) where no boundary term `shade` knows
+    makes it unbiased: checked once, when the derivative is asked for, not per sample."""
+    return point, normal, wo, brdf, lights
 
 
-_with_boundary_term.defjvp(_boundary_jvp, symbolic_zeros=True)
+def _guarded_jvp(strategy, mode, primals, tangents):
+    _refuse(strategy, mode, primals[4], tangents)
+    return primals, jax.tree_util.tree_map(_instantiate, tuple(primals), tuple(tangents),
+                                           is_leaf=lambda v: isinstance(v, SymbolicZero))
+
+
+_guarded.defjvp(_guarded_jvp, symbolic_zeros=True)
 
 
 def _check_shade(arguments):
@@ -372,7 +355,8 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
     `boundary=False` leaves the term out (a biased gradient), only so that the report can measure
     what the term costs."""
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
-    shading = _Shading(point, normal, wo, brdf, as_lights("shade", lights), mode)
+    point, normal, wo, brdf, lights = _guarded(strategy, mode, point, normal, wo, brdf, as_lights("shade", lights))
+    shading = _Shading(point, normal, wo, brdf, lights, mode)
     exponent = heuristic_exponent("shade", heuristic, beta)
 
     def brdf_values(u, weighted):
@@ -401,11 +385,21 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
         return interior, dims, count
     rims = len(shading.silhouettes())
 
-    def values_fn(u):
-        # Each evaluation (pair, for "mis") carries one rim point per light with a silhouette.
-        return _with_boundary_term(strategy, mode, exponent, rims, point, normal, wo, brdf, shading.lights,
-                                   _rim_seed(u), interior(u))
+    if rims == 0:
+        return interior, dims, count
 
+    def with_boundary_term(u):
+        # Each evaluation (pair, for "mis") carries one rim point per light with a silhouette; the
+        # surrogates have value 0, so these are the interior values with the boundary term's derivative.
+        t = _rim_uniforms(jax.lax.stop_gradient(_rim_seed(u)), rims)
+        return interior(u) + shading.boundary_values(t, strategy, exponent)
+
+    def values_fn(u):
+        return interior(u)
+
+    # The engine evaluates the value without the term (it is 0) and differentiates the function with
+    # it (`estimators.engine`): an estimate that is not differentiated costs what it would without.
+    values_fn.derivative = with_boundary_term
     return values_fn, dims, count
 
 
@@ -447,6 +441,9 @@ def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, 
                        beta=beta)
 
 
+_FORWARD_PARAMETERS = 8
+
+
 def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype, boundary=True,
                 beta=None):
     n = _check_options("shade_grad", strategy, mode, heuristic, beta, n)
@@ -458,8 +455,12 @@ def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh,
 
     def values_fn(u):
         def one(row):
-            return jax.grad(lambda theta: _program(*make(unravel(theta)), strategy, mode, heuristic, n,
-                                                   dtype, boundary, beta)[0](row[None])[0])(flat)
+            def value(theta):
+                fn = _program(*make(unravel(theta)), strategy, mode, heuristic, n, dtype, boundary, beta)[0]
+                return getattr(fn, "derivative", fn)(row[None])[0]
+            # Forward mode for a few parameters: per point it is one JVP per parameter, where reverse
+            # mode turns a light's table lookup into a scatter (7x slower for an environment map).
+            return (jax.jacfwd if flat.size <= _FORWARD_PARAMETERS else jax.grad)(value)(flat)
         return jax.vmap(one)(u)
 
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
