@@ -570,12 +570,14 @@ def _differentiable_stream(values_fn, source: Source, seed, dims: int, dtype, n:
         primal = moments(consts, d_consts, seed)
         k = sum(int(np.size(c)) for c in moving)
         aux = _stream(lambda carried: _sensitivities(point, carried[0], own_point, carried[1], live, out_shape, k),
-                      source, seed, dims, dtype, 0, n, n, chunk_size, (3,) + out_shape + (k,), chunk_size,
+                      source, seed, dims, dtype, 0, n, n, chunk_size, (4,) + out_shape + (k,), chunk_size,
                       diagnostics=False, carried=(list(consts), list(own)))
         t = _ravel([t for t, m in zip(own_tangents, live) if m])[0].astype(dtype)
-        per_replicate = aux.sums + aux.compensation                       # (R, 3, *out, k)
+        per_replicate = aux.sums + aux.compensation                       # (R, 4, *out, k)
         total = jnp.sum(per_replicate, axis=0)
-        mean = jnp.sum(primal.sums + primal.compensation, axis=0) / primal.count
+        # ȳ from this stream too: the tangent then needs nothing of the value's stream, which a
+        # gradient alone (jax.grad) leaves out.
+        mean = total[3, ..., 0] / n
         zero = jax.tree.map(jnp.zeros_like, primal)
         return primal, _Moments(
             sums=per_replicate[:, 0] @ t, compensation=zero.compensation,
@@ -595,7 +597,7 @@ def _instantiate(primal, tangent):
 
 
 def _sensitivities(value_point, value_consts, point, consts, live, out_shape, k):
-    """The block function u -> (3, *out, k): S, y S and sign(y) S per point, S_k = ∂y/∂c_k the JVP
+    """The block function u -> (4, *out, k): S, y S, sign(y) S and y per point, S_k = ∂y/∂c_k the JVP
     of the per-point program `point` along the k-th coordinate of its moving constants (see
     `_differentiable_stream`), y the value (`value_point`: a derivative program's surrogates of value
     0 are not evaluated for it, and where their tangent is zero XLA drops them). y and S are marked
@@ -612,7 +614,7 @@ def _sensitivities(value_point, value_consts, point, consts, live, out_shape, k)
         s = jax.vmap(lambda e: jax.jvp(f, (start,), (e,))[1], out_axes=-1)(jnp.eye(k, dtype=start.dtype))
         y = value_point(u, *value_consts)
         y, s = stored_once((y, s.astype(y.dtype)))
-        return jnp.stack([s, y[..., None] * s, jnp.sign(y)[..., None] * s])
+        return jnp.stack([s, y[..., None] * s, jnp.sign(y)[..., None] * s, jnp.broadcast_to(y[..., None], s.shape)])
 
     return lambda u: one(u[0])[None] if u.shape[0] == 1 else jax.vmap(one)(u)
 
