@@ -1480,7 +1480,7 @@ MUTATIONS = [
       "test keys drawn from state shared across tests: a test's numbers depend on what ran before it"),
     # ---- issue 51: a gradient the size of its mathematics ----
     M("gradient-reverse-through-the-loop", "jaxsample/estimators/engine.py",
-      "FORWARD_WIDTH = 16", "FORWARD_WIDTH = 0",
+      "FORWARD_WIDTH = 8", "FORWARD_WIDTH = 0",
       ("tests/estimators/test_gradient_programs.py::test_the_shade_gradient_is_a_forward_pass_of_bounded_size",),
       "the stream differentiated in reverse through its loop: the gradient of shade 10-90x its value, 2.5 MB of HLO"),
     M("gradient-loop-invariants-hoisted", "jaxsample/estimators/engine.py",

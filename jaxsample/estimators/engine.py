@@ -112,7 +112,7 @@ def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape, bi
     """Statistics of one chunk given as g arrays of values (*lanes, *out) (see Source.lanes:
     group q holds the points g b + q of the chunk, b the C-order index over the lanes), with the
     tail state of the diagnostics in `bins` bins (`diagnostics=False`, for measuring their cost only: no tail,
-    every Y counted nonzero).
+    every Y counted nonzero; "sums": the per-replicate sums only, M2 and the rest 0).
 
     With replicates R > 1, g divides R and the chunk's offset is a multiple of R.
     """
@@ -132,6 +132,11 @@ def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape, bi
     else:
         per_replicate = tree_sum(sum(groups))[None]
         low = jnp.zeros_like(per_replicate)
+    if diagnostics == "sums":
+        # The sums alone (the forward derivative's stream: `_differentiable_stream`).
+        zeros = jnp.zeros(out_shape, first.dtype)
+        return _Moments(per_replicate, low, zeros, zeros, zeros, empty_tail(out_shape, first.dtype, bins),
+                        jnp.full(out_shape, float(count), first.dtype), jnp.asarray(count, first.dtype))
     chunk_mean = per_replicate.sum(axis=0) / count
     m2 = tree_sum(sum((y - chunk_mean) * (y - chunk_mean) for y in groups))
     max_abs = functools.reduce(jnp.maximum, [jnp.max(jnp.abs(y), axis=0) for y in groups])
@@ -361,9 +366,12 @@ def group_values(values_fn, groups, tok, stored: bool, derivative_fn=None):
     return values(flat, tok, list(consts), [] if derivative_fn is None else list(d_consts))
 
 
-# The per-point derivative is pushed forward along every coordinate of the moving constants when
-# they times the values per point are at most this many (see `_forward_tangents`).
-FORWARD_WIDTH = 16
+# The derivative is pushed forward along every coordinate of the moving constants while they times
+# the values per point are at most this many (`_differentiable_stream`, `_forward_tangents`); past it,
+# one reverse sweep per point is cheaper. Measured (`benchmarks/compile_and_outputs.py`, n = 2^20):
+# the 16-coefficient spherical-harmonics projection's gradient ran 134 ns per sample forward and
+# 39 reverse, the 9-coefficient 54 and 30; one value per point, forward 6.8 (the environment integrand).
+FORWARD_WIDTH = 8
 
 
 def _forward_tangents(point, example, consts, live, once, tangents, regroup, shape, tok):
@@ -571,7 +579,7 @@ def _differentiable_stream(values_fn, source: Source, seed, dims: int, dtype, n:
         k = sum(int(np.size(c)) for c in moving)
         aux = _stream(lambda carried: _sensitivities(point, carried[0], own_point, carried[1], live, out_shape, k),
                       source, seed, dims, dtype, 0, n, n, chunk_size, (4,) + out_shape + (k,), chunk_size,
-                      diagnostics=False, carried=(list(consts), list(own)))
+                      diagnostics="sums", carried=(list(consts), list(own)))
         t = _ravel([t for t, m in zip(own_tangents, live) if m])[0].astype(dtype)
         per_replicate = aux.sums + aux.compensation                       # (R, 4, *out, k)
         total = jnp.sum(per_replicate, axis=0)
