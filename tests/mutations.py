@@ -1504,13 +1504,9 @@ MUTATIONS = [
       "def safe_sqrt(x: jax.Array) -> jax.Array:", "@jax.custom_jvp\ndef safe_sqrt(x: jax.Array) -> jax.Array:",
       ("tests/estimators/test_gradient_programs.py::test_the_shading_programs_stay_on_the_lanes",),
       "safe_sqrt a custom-derivative primitive again: the shading programs leave the lanes at every sqrt"),
-    M("lanes-no-add-any", "jaxsample/_core/lanes.py",
-      "    **({_ADD_ANY: _elementwise} if _ADD_ANY is not None else {}),", "",
-      ("tests/estimators/test_gradient_programs.py::test_lanes_take_reverse_mode_sums_and_unstacked_vectors",),
-      "reverse mode's cotangent sums (add_any) leave the lanes: shade_grad's per-point gradients stacked"),
     M("lanes-unstack-to-scalars", "jaxsample/_core/lanes.py",
       "    parts = [p if isinstance(p, np.ndarray) else _object_array([p], ()) for p in parts]", "",
-      ("tests/estimators/test_gradient_programs.py::test_lanes_take_reverse_mode_sums_and_unstacked_vectors",),
+      ("tests/estimators/test_gradient_programs.py::test_lanes_unstack_a_vector_into_scalars",),
       "jnp.unstack of a vector gives lanes holding a bare array, not 0-d cells: a shape error downstream"),
 ]
 

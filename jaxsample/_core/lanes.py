@@ -536,16 +536,6 @@ def _stored_once(ev, eqn, inputs):
     return out
 
 
-def _add_any():
-    try:
-        from jax._src.ad_util import add_jaxvals_p
-    except ImportError:
-        return None
-    return add_jaxvals_p if isinstance(add_jaxvals_p, jex_core.Primitive) else None
-
-
-_ADD_ANY = _add_any()
-
 _RULES = {
     _core_stored_once_p: _stored_once,
     **_keyed(dict.fromkeys(_ELEMENTWISE_NAMES, _elementwise)),
@@ -557,9 +547,6 @@ _RULES = {
     **_keyed({"tile": _tile}, since=(0, 9, 0)),
     **_keyed({"stack": _stack, "unstack": _unstack}, since=(0, 10, 1)),
     **{prim: _reduce for prim in _REDUCERS},
-    # Reverse mode's sum of two cotangents (`jax.grad` of a per-point function, as `shade_grad`
-    # evaluates): elementwise addition.
-    **({_ADD_ANY: _elementwise} if _ADD_ANY is not None else {}),
 }
 
 

@@ -175,15 +175,17 @@ def test_a_forward_derivative_of_shade_matches_forward_mode_and_the_per_sample_g
     np.testing.assert_allclose(by_samples, by_grad, rtol=1e-4)
 
 
-def test_lanes_take_reverse_mode_sums_and_unstacked_vectors():
-    """A per-point `jax.grad` adds cotangents with `add_any`, and `jnp.unstack` of a 3-vector gives
-    scalars: both on the lanes (strict), equal to vmap."""
-    def per_point(x):
-        def f(v):
-            a, b, c = jnp.unstack(v)
-            return a * b + b * c + jnp.sin(a) * c
-        return jax.grad(f)(x)
+def test_lanes_unstack_a_vector_into_scalars():
+    """`jnp.unstack` of a 3-vector gives three scalars on the lanes (strict), equal to vmap; and a
+    per-point reverse-mode gradient of the same function (its cotangent sums, `add_any`, are
+    evaluated by vmap) equals vmap's too."""
+    def f(v):
+        a, b, c = jnp.unstack(v)
+        return a * b + b * c + jnp.sin(a) * c
 
     x = jax.random.uniform(next_key(), (16, 3))
-    lanes = lane_map(per_point, 16, strict=True)(tuple(x[:, i] for i in range(3)))
-    np.testing.assert_allclose(np.asarray(lanes), np.asarray(jax.vmap(per_point)(x)), rtol=1e-6)
+    columns = tuple(x[:, i] for i in range(3))
+    np.testing.assert_allclose(np.asarray(lane_map(f, 16, strict=True)(columns)), np.asarray(jax.vmap(f)(x)),
+                               rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(lane_map(jax.grad(f), 16)(columns)), np.asarray(jax.vmap(jax.grad(f))(x)),
+                               rtol=1e-6)
