@@ -390,14 +390,7 @@ def _forward_tangents(point, example, consts, live, once, tangents, regroup, sha
     out_shape = jax.eval_shape(lambda: point(example, *consts)).shape
 
     def sensitivities(one, *values):
-        start, unravel = _ravel([v for v, m in zip(values, live) if m])
-
-        def f(coords):
-            it = iter(unravel(coords))
-            return point(one, *[next(it) if m else v for v, m in zip(values, live)])
-
-        basis = jnp.eye(start.size, dtype=start.dtype)
-        s = jax.vmap(lambda e: jax.jvp(f, (start,), (e,))[1], out_axes=-1)(basis)
+        s = _pushforward(point, one, values, live)
         return tuple(s.reshape(-1)[i] for i in range(s.size))
 
     per_group = [lane_map(lambda one: sensitivities(one, *consts), shape, token=tok)(lanes) for lanes in regroup(once)]
@@ -408,6 +401,19 @@ def _forward_tangents(point, example, consts, live, once, tangents, regroup, sha
         columns = jnp.stack([next(stored) for _ in group], axis=-1).reshape(shape + out_shape + (t.size,))
         out.append(jnp.sum(columns * t.astype(columns.dtype), axis=-1))
     return out
+
+
+def _pushforward(point, one, values, live):
+    """(*out, k): the JVP of point(one, *values) along each of the k coordinates of the values marked
+    `live` (the others held), by `vmap` over the basis: the primal is computed once."""
+    start, unravel = _ravel([v for v, m in zip(values, live) if m])
+
+    def f(coords):
+        it = iter(unravel(coords))
+        return point(one, *[next(it) if m else v for v, m in zip(values, live)])
+
+    basis = jnp.eye(start.size, dtype=start.dtype)
+    return jax.vmap(lambda e: jax.jvp(f, (start,), (e,))[1], out_axes=-1)(basis)
 
 
 def _ravel(arrays):
@@ -577,7 +583,7 @@ def _differentiable_stream(values_fn, source: Source, seed, dims: int, dtype, n:
             return jax.jvp(lambda c, d: plain(c, d, seed), (list(consts), list(d_consts)), tuple(full))
         primal = moments(consts, d_consts, seed)
         k = sum(int(np.size(c)) for c in moving)
-        aux = _stream(lambda carried: _sensitivities(point, carried[0], own_point, carried[1], live, out_shape, k),
+        aux = _stream(lambda carried: _sensitivities(point, carried[0], own_point, carried[1], live),
                       source, seed, dims, dtype, 0, n, n, chunk_size, (4,) + out_shape + (k,), chunk_size,
                       diagnostics="sums", carried=(list(consts), list(own)))
         t = _ravel([t for t, m in zip(own_tangents, live) if m])[0].astype(dtype)
@@ -585,7 +591,7 @@ def _differentiable_stream(values_fn, source: Source, seed, dims: int, dtype, n:
         total = jnp.sum(per_replicate, axis=0)
         # ȳ from this stream too: the tangent then needs nothing of the value's stream, which a
         # gradient alone (jax.grad) leaves out.
-        mean = total[3, ..., 0] / n
+        mean = total[3, ..., 0] / float(n)  # a float: n past 2^31 would overflow JAX's weak int32
         zero = jax.tree.map(jnp.zeros_like, primal)
         return primal, _Moments(
             sums=per_replicate[:, 0] @ t, compensation=zero.compensation,
@@ -604,22 +610,15 @@ def _instantiate(primal, tangent):
     return jnp.zeros_like(primal)
 
 
-def _sensitivities(value_point, value_consts, point, consts, live, out_shape, k):
+def _sensitivities(value_point, value_consts, point, consts, live):
     """The block function u -> (4, *out, k): S, y S, sign(y) S and y per point, S_k = ∂y/∂c_k the JVP
     of the per-point program `point` along the k-th coordinate of its moving constants (see
     `_differentiable_stream`), y the value (`value_point`: a derivative program's surrogates of value
     0 are not evaluated for it, and where their tangent is zero XLA drops them). y and S are marked
     `stored_once`, so that the lanes program computes them in shared loops and the products read
     them."""
-    moving = [c for c, m in zip(consts, live) if m]
-    start, unravel = _ravel(moving)
-
     def one(u):
-        def f(coords):
-            it = iter(unravel(coords))
-            return point(u, *[next(it) if m else c for c, m in zip(consts, live)])
-
-        s = jax.vmap(lambda e: jax.jvp(f, (start,), (e,))[1], out_axes=-1)(jnp.eye(k, dtype=start.dtype))
+        s = _pushforward(point, u, consts, live)
         y = value_point(u, *value_consts)
         y, s = stored_once((y, s.astype(y.dtype)))
         return jnp.stack([s, y[..., None] * s, jnp.sign(y)[..., None] * s, jnp.broadcast_to(y[..., None], s.shape)])

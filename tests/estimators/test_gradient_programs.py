@@ -63,17 +63,23 @@ def _transposed_loops(text):
     return [line for line in text.splitlines() if " while(" in line and "transpose(" in line]
 
 
+def _assert_a_forward_gradient(value, x):
+    """jax.grad(value) at x: no transposed loop, no chunk-sized arrays made outside the loops, an
+    optimized HLO at most 3x the value's. Returns the gradient's HLO text."""
+    grad = jax.grad(value)
+    value_text, grad_text = _hlo(value, x), _hlo(grad, x)
+    assert _transposed_loops(grad_text) == [], "a loop is transposed: the reverse pass is back"
+    assert len(grad_text) <= 3.0 * len(value_text), (len(grad_text), len(value_text))
+    assert _chunk_arrays_outside_loops(jax.make_jaxpr(grad)(x).jaxpr) == 0
+    return grad_text
+
+
 @pytest.mark.parametrize("strategy", ["mis", "brdf"])
 def test_the_shade_gradient_is_a_forward_pass_of_bounded_size(strategy):
     """jax.grad of `shade` (Phong exponent, a sphere light: the boundary term included) compiles to
     forward loops only: no transposed loop, no chunk-sized arrays made outside the loops, and an
     optimized HLO at most 3x the value's (the reverse pass through the loop was 8-10x, 2.5 MB)."""
-    value, grad = _shade_mean(strategy), jax.grad(_shade_mean(strategy))
-    x = jnp.float32(np.log(25.0))
-    value_text, grad_text = _hlo(value, x), _hlo(grad, x)
-    assert _transposed_loops(grad_text) == [], "a loop is transposed: the reverse pass is back"
-    assert len(grad_text) <= 3.0 * len(value_text), (len(grad_text), len(value_text))
-    assert _chunk_arrays_outside_loops(jax.make_jaxpr(grad)(x).jaxpr) == 0
+    grad_text = _assert_a_forward_gradient(_shade_mean(strategy), jnp.float32(np.log(25.0)))
     assert grad_text.count(" while(") <= 3
 
 
@@ -83,11 +89,7 @@ def test_the_estimate_gradient_is_a_forward_pass_of_bounded_size():
         lobe = js.Oriented(js.PhongLobe(exponent), jnp.array([0.0, 0.6, 0.8]))
         return js.estimate(lambda w: jnp.maximum(w[2], 0.0) ** 2, lobe, jax.random.key(4), N).mean
 
-    x = jnp.float32(20.0)
-    value_text, grad_text = _hlo(mean, x), _hlo(jax.grad(mean), x)
-    assert _transposed_loops(grad_text) == []
-    assert len(grad_text) <= 3.0 * len(value_text), (len(grad_text), len(value_text))
-    assert _chunk_arrays_outside_loops(jax.make_jaxpr(jax.grad(mean))(x).jaxpr) == 0
+    _assert_a_forward_gradient(mean, jnp.float32(20.0))
 
 
 def _loop_equations(jaxpr, inside=False):
