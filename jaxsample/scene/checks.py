@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._core.params import concrete_value
+from .colour import scene_channels
 
 __all__ = ["check_scene", "as_lights"]
 
@@ -69,6 +70,7 @@ def check_scene(owner: str, point, normal, wo, brdf, lights) -> tuple:
     p = _vector(owner, "point", point)
     n = _vector(owner, "normal", normal)
     w = _vector(owner, "wo", wo)
+    scene_channels(owner, brdf, lights)
     for name, v in (("normal", n), ("wo", w)):
         if v is not None and not np.any(v):
             raise ValueError(f"{owner}: parameter '{name}' must be a non-zero vector (it is normalized); got {v}")

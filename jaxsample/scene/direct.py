@@ -74,6 +74,7 @@ from ..samplers.frame import Frame
 from .._core.numerics import safe_div
 from ..estimators.boundary import relative_motion, sample_flow
 from .checks import as_lights, check_scene
+from .colour import product, scene_channels
 
 __all__ = ["shade", "shade_grad", "STRATEGIES"]
 
@@ -97,17 +98,32 @@ class _Shading:
         self.brdf = brdf
         self.lights = lights
         self.detached = mode == "detached"
+        # () for one grey channel, (C,) for colour (`scene.colour`): f_r and L_i per channel,
+        # directions, densities and MIS weights shared by every channel.
+        self.channels = scene_channels("shade", brdf, lights, jnp.result_type(point))
+
+    def colour(self, values, batch_ndim):
+        """A per-sample array (`batch_ndim` axes) given the scene's channel axis, so that it broadcasts
+        against per-channel values; per-channel values and Python numbers are returned as they are."""
+        if self.channels and not isinstance(values, (int, float)) and jnp.ndim(values) == batch_ndim:
+            return jnp.expand_dims(values, -1)
+        return values
+
+    def radiance_from(self, light, wi):
+        """`light`'s radiance along world directions wi, with the scene's channel axis."""
+        return self.colour(light.radiance_from(self.point, wi), wi.ndim - 1)
 
     # Radiance arriving along world directions, and the light-sampling density there.
     def light_radiance(self, wi):
-        return sum(light.radiance_from(self.point, wi) for light in self.lights)
+        return sum(self.radiance_from(light, wi) for light in self.lights)
 
     def light_pdf(self, wi):
         return sum(light.pdf(self.point, wi) for light in self.lights) / len(self.lights)
 
     def integrand(self, wi_local, radiance):
+        """f_r L_i cos⁺θ_i per sample, per channel where the scene has colour."""
         cos_theta = jnp.maximum(wi_local[..., 2], 0.0)
-        return self.brdf.eval(self.wo_local, wi_local) * radiance * cos_theta
+        return product(wi_local.ndim - 1, self.brdf.eval(self.wo_local, wi_local), radiance, cos_theta)
 
     def _freeze(self, *arrays):
         return jax.lax.stop_gradient(arrays) if self.detached else arrays
@@ -129,6 +145,7 @@ class _Shading:
         if len(lights) == 1:
             wi, radiance, pdf = lights[0].sample(self.point, u)
             wi, pdf = self._freeze(wi, pdf)
+            radiance = self.colour(radiance, pdf.ndim)
         else:
             count = len(lights)
             chosen = jnp.clip(jnp.floor(u[..., 0] * count), 0, count - 1).astype(jnp.int32)
@@ -140,7 +157,8 @@ class _Shading:
                 mine = chosen == k
                 # The chosen light's own radiance and density (no re-test at its rim); the
                 # others are evaluated along the chosen direction.
-                radiance = radiance + jnp.where(mine, own_radiance, light.radiance_from(self.point, wi))
+                radiance = radiance + jnp.where(self.colour(mine, mine.ndim), self.colour(own_radiance, mine.ndim),
+                                                self.radiance_from(light, wi))
                 pdf = pdf + jnp.where(mine, own_pdf, light.pdf(self.point, wi))
             (pdf,) = self._freeze(pdf / count)
         wi_local = self.frame.to_local(wi)
@@ -178,7 +196,11 @@ class _Shading:
         """Per-sample surrogates of value 0 whose derivative is what `strategy` misses at the lights'
         silhouettes: ∫_∂ Δ(h) q ((v - V)·n) dl per piece of the estimator (module docstring)."""
         count = len(self.lights)
-        total = jnp.zeros(t.shape[:1], t.dtype)
+        total = jnp.zeros(t.shape[:1] + self.channels, t.dtype)
+
+        def c(values):
+            return self.colour(values, 1)
+
         for column, (j, region) in enumerate(self.silhouettes()):
             y, normal, arc_pdf = region.boundary_sample(t[:, column:column + 1])
             fixed = jax.lax.stop_gradient(y)
@@ -186,16 +208,17 @@ class _Shading:
             local = self.frame.to_local(fixed)
             kernel = self.integrand(local, 1.0)                      # f_r cos⁺θ along the rim
             radiance_in, pdf_in = self.lights[j].inside_values(self.point, fixed)
+            radiance_in = c(radiance_in)
             others = [k for k in range(count) if k != j]
-            radiance_rest = sum((self.lights[k].radiance_from(self.point, fixed) for k in others), 0.0)
+            radiance_rest = sum((self.radiance_from(self.lights[k], fixed) for k in others), 0.0)
             pdf_others = [self.lights[k].pdf(self.point, fixed) for k in others]
             pdf_rest = sum(pdf_others, 0.0)
-            f_in, f_out = kernel * (radiance_rest + radiance_in), kernel * radiance_rest
+            f_in, f_out = c(kernel) * (radiance_rest + radiance_in), c(kernel) * radiance_rest
             mix_in, mix_out = (pdf_rest + pdf_in) / count, pdf_rest / count
 
             def add(jump, flows):
-                weight = jax.lax.stop_gradient(safe_div(jump, arc_pdf))
-                return weight * jnp.sum(normal * relative_motion(y, flows), axis=-1)
+                weight = jax.lax.stop_gradient(safe_div(jump, c(arc_pdf)))
+                return weight * c(jnp.sum(normal * relative_motion(y, flows), axis=-1))
 
             if self.detached:
                 # Samples, densities and weights held: the whole boundary term, Δf v·n.
@@ -205,14 +228,14 @@ class _Shading:
             if strategy in ("brdf", "mis"):
                 w_in = mis_weight(brdf_pdf, mix_in, exponent) if strategy == "mis" else 1.0
                 w_out = mis_weight(brdf_pdf, mix_out, exponent) if strategy == "mis" else 1.0
-                total = total + add(w_in * f_in - w_out * f_out, (self.brdf_flow,))
+                total = total + add(c(w_in) * f_in - c(w_out) * f_out, (self.brdf_flow,))
             if strategy in ("light", "mis"):
                 # Light j's own samples follow its rim; the other lights' samples cross it.
                 w_in = mis_weight(mix_in, brdf_pdf, exponent) if strategy == "mis" else 1.0
                 w_out = mis_weight(mix_out, brdf_pdf, exponent) if strategy == "mis" else 1.0
-                jump = safe_div(w_in * f_in, mix_in) - safe_div(w_out * f_out, mix_out)
+                jump = safe_div(c(w_in) * f_in, c(mix_in)) - safe_div(c(w_out) * f_out, c(mix_out))
                 for k, pdf_k in zip(others, pdf_others):
-                    total = total + add(jump * pdf_k / count, (lambda wi, k=k: self.light_flow(k, wi),))
+                    total = total + add(jump * c(pdf_k) / count, (lambda wi, k=k: self.light_flow(k, wi),))
         return total
 
 
@@ -320,15 +343,20 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
         a ValueError.
       uniforms, mesh, chunk_size, dtype: as in `jaxsample.estimate`.
 
-    Returns: an `Estimate` of L_o (a scalar); `n` is the evaluation count and `variance` the
+    Colour: BRDF parameters (albedo, η, k) and light radiances may carry a trailing channel axis of C
+    channels (`jaxsample.scene.colour`); then L_o has one value per channel, each with its own
+    standard error, all from the same samples: directions, densities and MIS weights are shared by
+    every channel (one proposal; an `EnvironmentMap` samples by its channel average).
+
+    Returns: an `Estimate` of L_o, shape () or (C,); `n` is the evaluation count and `variance` the
     per-evaluation variance, so strategies compare at equal cost.
     """
     n = _check_options("shade", strategy, mode, heuristic, beta, n)
     dtype = resolve_float_dtype("shade", dtype)
-    values_fn, dims, count = _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype,
-                                      beta=beta)
+    values_fn, dims, count, channels = _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n,
+                                                dtype, beta=beta)
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh,
-                     chunk_size=chunk_size, out_shape=(), dtype=dtype, owner="shade")
+                     chunk_size=chunk_size, out_shape=channels, dtype=dtype, owner="shade")
     if count == n:
         return est
     return est.per_evaluation(n)  # one pair costs two evaluations
@@ -363,13 +391,13 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
         wi_local, radiance, pdf, light_pdf = shading.brdf_sample(u)
         g = shading.integrand(wi_local, radiance)
         weight = mis_weight(pdf, light_pdf, exponent) if weighted else 1.0
-        return safe_div(weight * g, pdf)
+        return safe_div(shading.colour(weight, pdf.ndim) * g, shading.colour(pdf, pdf.ndim))
 
     def light_values(u, weighted):
         wi_local, radiance, pdf, brdf_pdf = shading.light_sample(u)
         g = shading.integrand(wi_local, radiance)
         weight = mis_weight(pdf, brdf_pdf, exponent) if weighted else 1.0
-        return safe_div(weight * g, pdf)
+        return safe_div(shading.colour(weight, pdf.ndim) * g, shading.colour(pdf, pdf.ndim))
 
     if strategy == "brdf":
         interior, dims, count = (lambda u: brdf_values(u, False)), 2, n
@@ -382,11 +410,11 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
     # Light sampling of a single light, attached, follows that light's rim: nothing to add or refuse.
     follows = strategy == "light" and mode == "attached" and len(shading.lights) == 1
     if not boundary or follows:
-        return interior, dims, count
+        return interior, dims, count, shading.channels
     rims = len(shading.silhouettes())
 
     if rims == 0:
-        return interior, dims, count
+        return interior, dims, count, shading.channels
 
     def with_boundary_term(u):
         # Each evaluation (pair, for "mis") carries one rim point per light with a silhouette; the
@@ -400,7 +428,7 @@ def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtyp
     # The engine evaluates the value without the term (it is 0) and differentiates the function with
     # it (`estimators.engine`): an estimate that is not differentiated costs what it would without.
     values_fn.derivative = with_boundary_term
-    return values_fn, dims, count
+    return values_fn, dims, count, shading.channels
 
 
 def _rim_seed(u):
@@ -435,7 +463,8 @@ def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, 
     The mean is the gradient `jax.grad` of `shade(..., key, n, ...).mean` gives (same samples, to
     float rounding); the standard error is the spread of the per-evaluation (per-pair for "mis")
     gradients, streamed in constant memory like `jaxsample.estimate_grad`, with the silhouettes'
-    boundary term inside each of them. Options as in `shade`.
+    boundary term inside each of them. Options as in `shade`. For a scene with C colour channels
+    each leaf of the result has shape (C,) + the parameter's shape: one gradient per channel.
     """
     return _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype,
                        beta=beta)
@@ -451,7 +480,7 @@ def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh,
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"shade_grad: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
     dtype = resolve_float_dtype("shade_grad", dtype)
-    _, dims, count = _program(*make(params), strategy, mode, heuristic, n, dtype, boundary, beta)
+    _, dims, count, channels = _program(*make(params), strategy, mode, heuristic, n, dtype, boundary, beta)
 
     def values_fn(u):
         def one(row):
@@ -463,11 +492,14 @@ def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh,
             # scale, `benchmarks/gradient_cost.py`). For 4 parameters (the report's inverse problem:
             # a conductor under a quad light, under lax.map) forward ran 0.15 s and compiled in 44 s,
             # reverse 0.35 s and 35 s: reverse is kept there, for the compile.
-            return (jax.jacfwd if flat.size <= _FORWARD_PARAMETERS else jax.grad)(value)(flat)
+            reverse = jax.jacrev if channels else jax.grad
+            return (jax.jacfwd if flat.size <= _FORWARD_PARAMETERS else reverse)(value)(flat)
         return jax.vmap(one)(u)
 
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
-                     out_shape=flat.shape, dtype=dtype, owner="shade_grad")
+                     out_shape=channels + flat.shape, dtype=dtype, owner="shade_grad")
     if count != n:
         est = est.per_evaluation(n)
-    return dataclasses.replace(jax.tree_util.tree_map(unravel, est), gradient=True)
+    # One gradient per channel: leaves of shape (C,) + the parameter's shape, as `jax.jacobian` gives.
+    per_channel = jax.vmap(unravel) if channels else unravel
+    return dataclasses.replace(jax.tree_util.tree_map(per_channel, est), gradient=True)

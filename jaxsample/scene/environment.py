@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..samplers.base import Sampler, point_method
+from .._core.params import concrete_value
 from .._core.pytree import Pytree
 from ..samplers.domain import Directions
 from .._core.numerics import azimuth_fraction, safe_div, spherical_direction
@@ -47,6 +48,12 @@ class EnvironmentMap(Pytree):
 
     `values` must be finite, >= 0 and not all zero, shape (H, W) (ValueError when concrete); they
     may be traced, and gradients reach them through the radiance and the sampling tables.
+
+    Colour: `values` of shape (H, W, C) hold C channels per texel (`jaxsample.scene.colour`), and the
+    radiance methods return (..., C). One table samples every channel: the texel weights use the
+    channel average (as PBRT-v4's image lights do), defined for any number of channels, where
+    luminance would be RGB's alone. A channel that is bright where the average is dim is sampled
+    poorly, never with bias: the weight of a texel is > 0 wherever any channel is.
     """
 
     # Its radiance jumps at texel edges, which stay put in ω whatever its values: a gradient is
@@ -57,12 +64,17 @@ class EnvironmentMap(Pytree):
 
     def __init__(self, values):
         values = jnp.asarray(values)
-        if values.ndim != 2:
-            raise ValueError(f"EnvironmentMap: parameter 'values' must have shape (H, W); got {values.shape}")
+        if values.ndim not in (2, 3):
+            raise ValueError(f"EnvironmentMap: parameter 'values' must have shape (H, W), or (H, W, C) for C "
+                             f"channels; got {values.shape}")
+        concrete = concrete_value(values)
+        if concrete is not None and values.ndim == 3 and not np.all(np.isfinite(concrete) & (concrete >= 0)):
+            raise ValueError("EnvironmentMap: parameter 'values' must be finite and >= 0 in every channel")
         rows = values.shape[0]
         centre_sin = np.sin(np.pi * (np.arange(rows) + 0.5) / rows).astype(values.dtype)
         self.values = values
-        self.distribution = PiecewiseConstant2D(values * centre_sin[:, None])
+        weights = values if values.ndim == 2 else jnp.mean(values, axis=-1)
+        self.distribution = PiecewiseConstant2D(weights * centre_sin[:, None])
 
     def __repr__(self):
         return f"EnvironmentMap(shape={tuple(self.values.shape)})"
@@ -88,7 +100,7 @@ class EnvironmentMap(Pytree):
         return self._lookup(uv_from_direction(wi)[0])
 
     def _lookup(self, uv):
-        rows, columns = self.values.shape
+        rows, columns = self.values.shape[:2]
         return self.values[_texel(uv[..., 1], rows), _texel(uv[..., 0], columns)]
 
 

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 from .._core.pytree import Pytree, parameter
 from ..samplers.cosine import CosineHemisphere
 from .._core.numerics import INV_PI
+from .colour import lift
 
 
 class Lambertian(Pytree):
@@ -20,15 +21,17 @@ class Lambertian(Pytree):
     Sampling: the cosine-weighted hemisphere (Malley's method), p(ω_i) = cos θ_i / π over solid
     angle, which makes f_r cos θ_i / p = albedo for every sample (zero variance under a constant sky).
 
-    Parameter: `albedo` in [0, 1] (checked when concrete).
+    Parameter: `albedo` in [0, 1] (checked when concrete), a scalar or one per channel, shape (C,)
+    (`jaxsample.scene.colour`); `eval` then returns (..., C).
     """
 
     albedo: jax.Array = parameter(0.0, 1.0)
 
     def eval(self, wo: jax.Array, wi: jax.Array) -> jax.Array:
-        """f_r for local directions (..., 3); 0 unless both are strictly above the surface."""
+        """f_r for local directions (..., 3), shape (...) or (..., C) for a colour albedo; 0 unless
+        both are strictly above the surface."""
         above = (wo[..., 2] > 0) & (wi[..., 2] > 0)
-        return jnp.where(above, self.albedo * INV_PI, 0.0).astype(jnp.result_type(wi, float))
+        return jnp.where(lift(above, self.albedo), self.albedo * INV_PI, 0.0).astype(jnp.result_type(wi, float))
 
     def sampler(self, wo: jax.Array) -> CosineHemisphere:
         """The directional sampler of ω_i (local frame); it does not depend on ω_o."""

@@ -9,6 +9,7 @@ from .._core.pytree import Pytree, parameter
 from .._core.numerics import INV_2PI, safe_pow
 from ..samplers.oriented import Oriented
 from ..samplers.phong import PhongLobe
+from .colour import lift
 
 
 def reflect(wo: jax.Array) -> jax.Array:
@@ -34,19 +35,23 @@ class Phong(Pytree):
     (`PhongLobe` turned by `Oriented`); samples below the surface have f_r = 0 and are wasted, the
     usual price of lobe sampling (Lafortune & Willems 1994).
 
-    Parameters: `exponent` n in [0, 1e7], `albedo` in [0, 1] (checked when concrete).
+    Parameters: `exponent` n in [0, 1e7], `albedo` in [0, 1] (checked when concrete). The albedo may
+    be one per channel, shape (C,) (`jaxsample.scene.colour`): `eval` then returns (..., C); the
+    exponent, which shapes the sampled lobe, is one for every channel.
     """
 
     exponent: jax.Array = parameter(0.0, 1e7)
     albedo: jax.Array = parameter(0.0, 1.0)
 
     def eval(self, wo: jax.Array, wi: jax.Array) -> jax.Array:
-        """f_r for local directions (..., 3); 0 unless both are strictly above the surface."""
+        """f_r for local directions (..., 3), shape (...) or (..., C) for a colour albedo; 0 unless
+        both are strictly above the surface."""
         n = self.exponent
         above = (wo[..., 2] > 0) & (wi[..., 2] > 0)
         cos_alpha = jnp.sum(wi * reflect(wo), axis=-1)
         lobe = safe_pow(jnp.maximum(cos_alpha, 0.0), n)
-        return jnp.where(above, self.albedo * (n + 2.0) * INV_2PI * lobe, 0.0)
+        albedo = self.albedo
+        return jnp.where(lift(above, albedo), albedo * (n + 2.0) * INV_2PI * lift(lobe, albedo), 0.0)
 
     def sampler(self, wo: jax.Array) -> Oriented:
         """The cos^n lobe about the mirror direction of ω_o, as a directional sampler (local frame)."""

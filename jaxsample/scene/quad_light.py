@@ -14,6 +14,7 @@ from .._core.numerics import safe_div
 from ..samplers.base import Sampler, point_method
 from ..samplers.domain import Directions
 from ..samplers.spherical_rectangle import SphericalRectangle
+from .colour import lift
 
 __all__ = ["QuadLight", "QuadLightDirections", "LIGHT_SAMPLING"]
 
@@ -135,7 +136,8 @@ class QuadLight(Pytree):
     quad's, so light samples of this light follow its rim (no term for them).
 
     Parameters: `corner`, `edge_u`, `edge_v` 3-vectors (concrete ones checked: non-zero,
-    perpendicular to 1e-5 relative, as `SphericalRectangle` requires), `radiance` >= 0. Transparent:
+    perpendicular to 1e-5 relative, as `SphericalRectangle` requires), `radiance` >= 0, a scalar or one
+    per channel, shape (C,) (`jaxsample.scene.colour`: the radiance methods then return (..., C)). Transparent:
     nothing in this layer occludes.
     """
 
@@ -203,7 +205,7 @@ class QuadLight(Pytree):
         else:
             shape = jnp.shape(wi)[:-1]
             pdf = jnp.broadcast_to(1.0 / jnp.asarray(self.sampler(point).solid_angle, dtype), shape)
-        radiance = jnp.where(self._front(wi), self.radiance, 0.0).astype(dtype)
+        radiance = jnp.where(lift(self._front(wi), self.radiance), self.radiance, 0.0).astype(dtype)
         return radiance, pdf.astype(dtype)
 
     def sample(self, point, u):
@@ -213,7 +215,7 @@ class QuadLight(Pytree):
             wi, pdf, _ = self._area_sampler(point).direction_and_pdf(u)
         else:
             wi, pdf = self.sampler(point).warp_with_pdf(u)
-        radiance = jnp.where(self._front(wi), self.radiance, 0.0).astype(pdf.dtype)
+        radiance = jnp.where(lift(self._front(wi), self.radiance), self.radiance, 0.0).astype(pdf.dtype)
         return wi, radiance, pdf
 
     def pdf(self, point, wi):
@@ -222,4 +224,4 @@ class QuadLight(Pytree):
     def radiance_from(self, point, wi):
         """L where the ray from `point` along `wi` hits the front face, 0 elsewhere."""
         hit, _, _, _ = intersect_parallelogram(self.corner, self.edge_u, self.edge_v, point, wi)
-        return jnp.where(hit & self._front(wi), self.radiance, 0.0).astype(jnp.result_type(wi, float))
+        return jnp.where(lift(hit & self._front(wi), self.radiance), self.radiance, 0.0).astype(jnp.result_type(wi, float))

@@ -38,6 +38,7 @@ from .sphere_light import SphereLight
 from .triangle_light import TriangleLight
 from .quad_light import QuadLight
 from .rough_conductor import RoughConductor
+from .colour import product
 
 __all__ = ["reference_radiance"]
 
@@ -64,29 +65,42 @@ def _cap(frame, t, phi_fraction):
 
 @jax.jit
 def _weighted_sum(brdf, frame, wo_local, wi, radiance, weights):
+    """Σ_j w_j f_r L_j cos⁺θ_j over the nodes (axis 0), per channel where f_r or L has channels."""
     wi_local = frame.to_local(wi)
-    g = brdf.eval(wo_local, wi_local) * radiance * jnp.maximum(wi_local[..., 2], 0.0)
-    return jnp.sum(g * weights)
+    g = product(1, brdf.eval(wo_local, wi_local), radiance, jnp.maximum(wi_local[..., 2], 0.0), weights)
+    return jnp.sum(g, axis=0)
+
+
+def _constant(light, nodes):
+    """A light's constant radiance (a scalar or one per channel) at each of `nodes` directions."""
+    radiance = np.asarray(light.radiance, np.float64)
+    return np.broadcast_to(radiance, (nodes,) + radiance.shape)
+
+
+def _face(front, light):
+    """The radiance of a one-sided light at nodes where its front face is seen (`front`), else 0."""
+    radiance = np.asarray(light.radiance, np.float64)
+    return np.where(front[:, None] if radiance.ndim else front, radiance, 0.0)
 
 
 def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth):
     def weighted(wi, radiance, weights):
-        return float(_weighted_sum(brdf, frame, wo_local, jnp.asarray(wi), jnp.asarray(radiance, jnp.float64),
-                                   jnp.asarray(weights)))
+        return np.asarray(_weighted_sum(brdf, frame, wo_local, jnp.asarray(wi), jnp.asarray(radiance, jnp.float64),
+                                        jnp.asarray(weights)))
 
     phi, w_phi = _midpoints(azimuth)
     if isinstance(light, ConstantSky) and isinstance(brdf, RoughConductor):
-        return float(light.radiance) * _lobe_integral(brdf, wo_local, panels, order)
+        return np.asarray(light.radiance, np.float64) * _lobe_integral(brdf, wo_local, panels, order)
     if isinstance(light, ConstantSky):
         t, w_t = _panels(0.0, 1.0, panels, order)
         wi = _cap(frame, t, phi)
-        return weighted(wi, light.radiance, 2.0 * np.pi * np.outer(w_t, w_phi).ravel())
+        return weighted(wi, _constant(light, len(wi)), 2.0 * np.pi * np.outer(w_t, w_phi).ravel())
     if isinstance(light, SphereLight):
         cone = light.sampler(point)
         h = float(cone.base.one_minus_cos_theta_max)
         t, w_t = _panels(0.0, h, panels, order)
         wi = _cap(cone.frame, t, phi)
-        return weighted(wi, light.radiance, 2.0 * np.pi * np.outer(w_t, w_phi).ravel())
+        return weighted(wi, _constant(light, len(wi)), 2.0 * np.pi * np.outer(w_t, w_phi).ravel())
     if isinstance(light, TriangleLight):
         a, b, c = (np.asarray(v, np.float64) for v in (light.a, light.b, light.c))
         v, w_v = _panels(0.0, 1.0, panels, order)
@@ -100,7 +114,7 @@ def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
         distance2 = np.sum(offset * offset, axis=-1)
         wi = offset / np.sqrt(distance2)[:, None]
         cos_light = wi @ normal
-        radiance = np.where(cos_light < 0, float(light.radiance), 0.0)
+        radiance = _face(cos_light < 0, light)
         area_weights = twice_area * (vv * np.outer(w_v, w_w)).ravel()
         return weighted(jnp.asarray(wi), jnp.asarray(radiance), jnp.asarray(area_weights * np.abs(cos_light) / distance2))
     if isinstance(light, QuadLight):
@@ -116,12 +130,12 @@ def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
         distance2 = np.sum(offset * offset, axis=-1)
         wi = offset / np.sqrt(distance2)[:, None]
         cos_light = wi @ normal
-        radiance = np.where(cos_light < 0, float(light.radiance), 0.0)
+        radiance = _face(cos_light < 0, light)
         weights = area * np.outer(w_s, w_r).ravel() * np.abs(cos_light) / distance2
         return weighted(jnp.asarray(wi), jnp.asarray(radiance), jnp.asarray(weights))
     if isinstance(light, EnvironmentMap):
         values = np.asarray(light.values, np.float64)
-        rows, columns = values.shape
+        rows, columns = values.shape[:2]
         s, w_s = _panels(0.0, 1.0, columns * panels // 4, order)
         t, w_t = _panels(0.0, 1.0, rows * panels // 4, order)
         ss, tt = np.meshgrid(s, t, indexing="ij")
@@ -137,8 +151,8 @@ def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
 @jax.jit
 def _lobe_sum(brdf, wo_local, u, weights):
     wi, pdf = brdf.sampler(wo_local).warp_with_pdf(u)
-    g = brdf.eval(wo_local, wi) * jnp.maximum(wi[..., 2], 0.0)
-    return jnp.sum(jnp.where(pdf > 0, g / jnp.where(pdf > 0, pdf, 1.0), 0.0) * weights)
+    scale = jnp.where(pdf > 0, jnp.maximum(wi[..., 2], 0.0) / jnp.where(pdf > 0, pdf, 1.0), 0.0) * weights
+    return jnp.sum(product(1, brdf.eval(wo_local, wi), scale), axis=0)
 
 
 def _graded_toward_one(panels, order):
@@ -166,15 +180,17 @@ def _lobe_integral(brdf, wo_local, panels, order):
     u0, w0 = _graded_toward_one(2 * panels, order)
     u1, w1 = _panels(0.0, 1.0, 2 * panels, order)
     grid = np.stack(np.meshgrid(u0, u1, indexing="ij"), -1).reshape(-1, 2)
-    return float(_lobe_sum(brdf, wo_local, jnp.asarray(grid), jnp.asarray(np.outer(w0, w1).ravel())))
+    return np.asarray(_lobe_sum(brdf, wo_local, jnp.asarray(grid), jnp.asarray(np.outer(w0, w1).ravel())))
 
 
 def reference_radiance(point, normal, wo, brdf, lights, *, panels: int = 64, order: int = 8,
-                       azimuth: int = 512) -> float:
+                       azimuth: int = 512) -> float | np.ndarray:
     """L_o at `point` by float64 quadrature (see the module docstring), for tests and benchmarks.
 
     `panels` Gauss–Legendre panels of `order` nodes along the polar coordinate (per texel row
     group for environment maps) and `azimuth` midpoint nodes around. Concrete inputs only.
+    A float; for a scene with colour channels (`jaxsample.scene.colour`), a float64 array of shape
+    (C,), one radiance per channel.
     """
     lights = check_scene("reference_radiance", point, normal, wo, brdf, lights)
     with jax.enable_x64(True):
@@ -185,5 +201,6 @@ def reference_radiance(point, normal, wo, brdf, lights, *, panels: int = 64, ord
         total = 0.0
         for light in lights:
             light = to_float64(light) if not isinstance(light, EnvironmentMap) else light
-            total += _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
-    return total
+            total = total + _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
+    total = np.asarray(total, np.float64)
+    return float(total) if total.ndim == 0 else total

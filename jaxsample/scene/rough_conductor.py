@@ -24,12 +24,23 @@ from ..samplers.base import Sampler, point_method, refuse_class
 from ..samplers.domain import Directions
 from ..samplers.microfacet import MicrofacetDistribution, MicrofacetReflection
 from ..samplers.microfacet_ggx import GGX
+from .colour import lift
 
 __all__ = ["RoughConductor", "FullNormalsReflection", "fresnel_conductor", "fresnel_schlick",
-           "normal_incidence_reflectance", "FRESNEL_FORMS", "BRDF_SAMPLING"]
+           "normal_incidence_reflectance", "FRESNEL_FORMS", "BRDF_SAMPLING", "CONDUCTOR_RGB"]
 
 FRESNEL_FORMS = ("conductor", "schlick")
 BRDF_SAMPLING = ("visible", "full")
+
+# The complex index η + i k of four metals in linear sRGB, (η_RGB, k_RGB): measured spectra integrated
+# against the sRGB primaries, as tabulated by the Tungsten renderer (`ComplexIorData`) and reused by
+# several renderers since; a three-channel stand-in for a spectral conductor.
+CONDUCTOR_RGB = {
+    "gold": ((0.1431189557, 0.3749570432, 1.4424785571), (3.9831604247, 2.3857207478, 1.6032152899)),
+    "copper": ((0.2004376970, 0.9240334304, 1.1022119527), (3.9129485033, 2.4528477015, 2.1421879552)),
+    "silver": ((0.1552646489, 0.1167232965, 0.1383806959), (4.8283433224, 3.1222459278, 2.1469504455)),
+    "aluminium": ((1.6574599595, 0.8803689579, 0.5212287346), (9.2238691996, 6.2695232477, 4.8370012281)),
+}
 
 
 def _dot(a, b):
@@ -193,6 +204,10 @@ class RoughConductor(Pytree):
     the textbook strategy the report compares it with. Either's density is nonzero below the surface,
     where f_r = 0, so those samples contribute 0 (`MicrofacetReflection`'s docstring).
 
+    Colour: η and k may be one per channel, shape (C,) (`jaxsample.scene.colour`; `from_table` gives
+    the RGB index of gold, copper, silver or aluminium), and `eval` then returns (..., C). α, which
+    shapes the sampled lobe, is one for every channel.
+
     Gradients: every parameter (α above all: roughness is what inverse rendering fits) is a leaf;
     attached samples move with α and ω_o through the sampler's warp, and `shade` accounts for them
     crossing a light's silhouette through the sampler's `inverse`. The lobe itself has no edge, so it
@@ -208,6 +223,15 @@ class RoughConductor(Pytree):
     def __post_init__(self):
         check_choice("RoughConductor", "fresnel", self.fresnel, FRESNEL_FORMS)
         check_choice("RoughConductor", "sampling", self.sampling, BRDF_SAMPLING)
+
+    @classmethod
+    def from_table(cls, metal: str, alpha, fresnel: str = "conductor", sampling: str = "visible") -> "RoughConductor":
+        """A rough conductor with the RGB complex index of a metal in `CONDUCTOR_RGB` ("gold", "copper",
+        "silver", "aluminium")."""
+        check_choice("RoughConductor.from_table", "metal", metal, tuple(CONDUCTOR_RGB))
+        eta, k = CONDUCTOR_RGB[metal]
+        return cls(alpha, jnp.asarray(eta, jnp.float32), jnp.asarray(k, jnp.float32), fresnel=fresnel,
+                   sampling=sampling)
 
     @classmethod
     def schlick(cls, alpha, f0, sampling: str = "visible") -> "RoughConductor":
@@ -233,7 +257,8 @@ class RoughConductor(Pytree):
         return fresnel_conductor(cos_theta, self.eta, self.k)
 
     def eval(self, wo: jax.Array, wi: jax.Array) -> jax.Array:
-        """f_r for local directions (..., 3); 0 unless both are strictly above the surface."""
+        """f_r for local directions (..., 3), shape (...) or (..., C) for a colour η or k; 0 unless
+        both are strictly above the surface."""
         above = (wo[..., 2] > 0) & (wi[..., 2] > 0)
         h = _normalized(wo + wi)
         alpha2 = jnp.asarray(self.alpha) ** 2
@@ -244,8 +269,10 @@ class RoughConductor(Pytree):
 
         zo, zi = wo[..., 2], wi[..., 2]
         masking = safe_div(0.5, zi * height(wo) + zo * height(wi))  # G2 / (4 cos θ_o cos θ_i)
-        value = self.distribution.D(h) * masking * self.reflectance(_dot(wo, h))
-        return jnp.where(above, value, 0.0)
+        index = jnp.zeros(jnp.broadcast_shapes(jnp.shape(self.eta), jnp.shape(self.k)))  # () or (C,)
+        fresnel = self.reflectance(lift(_dot(wo, h), index))
+        value = lift(self.distribution.D(h) * masking, index) * fresnel
+        return jnp.where(lift(above, index), value, 0.0)
 
     def sampler(self, wo: jax.Array) -> Sampler:
         """The directional sampler of ω_i for this ω_o (local frame): `sampling`'s reflection lobe."""

@@ -17,6 +17,8 @@ class ConstantSky(Pytree):
     the surface normal, so half of its samples fall below the surface; a cosine-weighted BRDF
     sampler is the better strategy here, and MIS finds that out by itself.
 
+    `radiance` >= 0, a scalar or one per channel, shape (C,) (`jaxsample.scene.colour`): the radiance
+    methods then return (..., C).
     """
 
     radiance: jax.Array = parameter(0.0)
@@ -33,11 +35,12 @@ class ConstantSky(Pytree):
     def sample(self, point, u):
         """(ω, L_i(ω), p(ω)) from uniforms u (..., 2); p over solid angle at `point`."""
         wi, pdf = self.sampler(point).warp_with_pdf(u)
-        return wi, jnp.broadcast_to(jnp.asarray(self.radiance, pdf.dtype), pdf.shape), pdf
+        return wi, jnp.broadcast_to(jnp.asarray(self.radiance, pdf.dtype), pdf.shape + jnp.shape(self.radiance)), pdf
 
     def pdf(self, point, wi):
         return jnp.full(wi.shape[:-1], INV_4PI, jnp.result_type(wi, float))
 
     def radiance_from(self, point, wi):
         """L_i arriving at `point` from direction `wi` (world frame)."""
-        return jnp.broadcast_to(jnp.asarray(self.radiance, jnp.result_type(wi, float)), wi.shape[:-1])
+        return jnp.broadcast_to(jnp.asarray(self.radiance, jnp.result_type(wi, float)),
+                                wi.shape[:-1] + jnp.shape(self.radiance))

@@ -8,6 +8,7 @@ import jax.numpy as jnp
 from .._core.pytree import Pytree, parameter
 from ..samplers.cone import UniformCone
 from ..samplers.oriented import Oriented
+from .colour import lift
 
 
 class SphereLight(Pytree):
@@ -27,7 +28,8 @@ class SphereLight(Pytree):
 
     The light is transparent (no occlusion anywhere in this scene layer). A point inside or on the
     sphere is outside the range: `shade` refuses a concrete one, and a traced one gives NaN. Parameters: `radius` > 0, `radiance` >= 0 (checked when concrete);
-    `center` a 3-vector. All three may be traced and differentiated: attached light samples move
+    `center` a 3-vector; `radiance` a scalar or one per channel, shape (C,) (`jaxsample.scene.colour`),
+    and the radiance methods then return (..., C). All three may be traced and differentiated: attached light samples move
     with the sphere.
     """
 
@@ -63,14 +65,14 @@ class SphereLight(Pytree):
         pdf = 1.0 / (2.0 * jnp.pi * self.sampler(point).base.one_minus_cos_theta_max)
         shape = jnp.shape(wi)[:-1]
         dtype = jnp.result_type(wi, float)
-        return (jnp.broadcast_to(jnp.asarray(self.radiance, dtype), shape),
+        return (jnp.broadcast_to(jnp.asarray(self.radiance, dtype), shape + jnp.shape(self.radiance)),
                 jnp.broadcast_to(jnp.asarray(pdf, dtype), shape))
 
     def sample(self, point, u):
         """(ω, L, p(ω)) from uniforms u (..., 2): every cone direction sees the sphere, so the
         radiance is L without re-testing membership (which rounding at the rim could flip)."""
         wi, pdf = self.sampler(point).warp_with_pdf(u)
-        return wi, jnp.broadcast_to(jnp.asarray(self.radiance, pdf.dtype), pdf.shape), pdf
+        return wi, jnp.broadcast_to(jnp.asarray(self.radiance, pdf.dtype), pdf.shape + jnp.shape(self.radiance)), pdf
 
     def pdf(self, point, wi):
         return self.sampler(point).pdf(wi)
@@ -78,5 +80,5 @@ class SphereLight(Pytree):
     def radiance_from(self, point, wi):
         """L where `wi` lies in the cone (the ray hits the sphere), 0 elsewhere; NaN for a point inside
         or on the sphere (outside the range: no cone)."""
-        radiance = jnp.where(self.sampler(point).pdf(wi) > 0, self.radiance, 0.0)
+        radiance = jnp.where(lift(self.sampler(point).pdf(wi) > 0, self.radiance), self.radiance, 0.0)
         return jnp.where(self.contains(point), jnp.nan, radiance).astype(jnp.result_type(wi, float))

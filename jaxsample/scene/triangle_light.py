@@ -14,6 +14,7 @@ from ..samplers.domain import Directions
 from .._core.numerics import safe_div
 from ..samplers.spherical_triangle import SphericalTriangle
 from ..samplers.triangle import UniformTriangle
+from .colour import lift
 
 
 def _intersect(triangle: UniformTriangle, origin, direction):
@@ -112,7 +113,8 @@ class TriangleLight(Pytree):
     light samples of this light follow its silhouette (no boundary term for them in `shade`).
 
     Parameters: non-degenerate vertices (checked by `UniformTriangle` when concrete), `radiance`
-    >= 0. The light is transparent: nothing in this scene layer occludes.
+    >= 0, a scalar or one per channel, shape (C,) (`jaxsample.scene.colour`: the radiance methods then
+    return (..., C)). The light is transparent: nothing in this scene layer occludes.
     """
 
     a: jax.Array
@@ -155,7 +157,7 @@ class TriangleLight(Pytree):
 
     def _face_radiance(self, wi, dtype):
         cos_light = jnp.sum(wi * self.triangle._normal()[0], axis=-1)
-        return jnp.where(cos_light < 0, self.radiance, 0.0).astype(dtype)
+        return jnp.where(lift(cos_light < 0, self.radiance), self.radiance, 0.0).astype(dtype)
 
     def inside_values(self, point, wi):
         """(L_i, p(ω)) just inside the silhouette at rim directions `wi`: the radiance of the face
@@ -187,4 +189,4 @@ class TriangleLight(Pytree):
         """L where the ray from `point` along `wi` hits the front face, 0 elsewhere."""
         hit, _ = _intersect(self.triangle, point, wi)
         front = jnp.sum(wi * self.triangle._normal()[0], axis=-1) < 0
-        return jnp.where(hit & front, self.radiance, 0.0).astype(jnp.result_type(wi, float))
+        return jnp.where(lift(hit & front, self.radiance), self.radiance, 0.0).astype(jnp.result_type(wi, float))
