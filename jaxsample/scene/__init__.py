@@ -1,7 +1,8 @@
 """Layer 7, the scene: only what one shading point needs (docs/design.md).
 
 BRDFs (`Lambertian`, `Phong`, `RoughConductor`) work in the local shading frame (normal +z) and have
-`eval`, `sample` and `pdf`; lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `QuadLight`,
+`eval`, `sample` and `pdf`; colours (albedo, η, k, radiance) are scalars or one value per channel
+(`jaxsample.scene.colour`); lights (`ConstantSky`, `SphereLight`, `TriangleLight`, `QuadLight`,
 `EnvironmentMap`) work in world space and have `sample(point, u) -> (ω, L, p)`, `pdf(point, ω)`,
 `radiance_from(point, ω)` and `sampler(point)` (a `jaxsample.Sampler` of directions, for the
 statistical checks). `shade`
@@ -14,15 +15,15 @@ from .lambertian import Lambertian
 from .phong import Phong, reflect
 from .quad_light import QuadLight, QuadLightDirections
 from .reference import reference_radiance
-from .rough_conductor import (FullNormalsReflection, RoughConductor, fresnel_conductor, fresnel_schlick,
-                              normal_incidence_reflectance)
+from .rough_conductor import (CONDUCTOR_RGB, FullNormalsReflection, RoughConductor, fresnel_conductor,
+                              fresnel_schlick, normal_incidence_reflectance)
 from .direct import STRATEGIES, mis_weight, shade, shade_grad
 from .sky import ConstantSky
 from .sphere_light import SphereLight
 from .triangle_light import TriangleLight, TriangleLightDirections
 
 __all__ = [
-    "Lambertian", "Phong", "reflect", "RoughConductor", "FullNormalsReflection",
+    "Lambertian", "Phong", "reflect", "RoughConductor", "FullNormalsReflection", "CONDUCTOR_RGB",
     "fresnel_conductor", "fresnel_schlick", "normal_incidence_reflectance",
     "ConstantSky", "SphereLight", "TriangleLight", "TriangleLightDirections", "QuadLight", "QuadLightDirections",
     "EnvironmentMap", "EnvironmentDirections",
