@@ -18,6 +18,10 @@ from the code at build time, so that it cannot go stale.
   exports: its `uniforms=` name, its constructor and default replicates, its docstring's first line.
 - `<!-- public-names -->`: every name of `jaxsample.__all__`, linked to its entry in the reference
   (a module without a page under reference/ yet is named, not linked).
+- `<!-- results: FILE -->`, `<!-- results: FILE#HEADING -->`: the measured results in
+  `benchmarks/results/FILE` (the whole file, or the section under that heading), and
+  `<!-- results-table: ... -->` only the first table there, each followed by the file it came from:
+  the docs show the numbers as the benchmark wrote them, never a copy kept by hand.
 
 Any other `<!-- run: ... -->`-style marker that names no script raises, as does a sampler missing
 from the registry: the strict build fails instead of printing a page with a hole in it.
@@ -49,7 +53,6 @@ FIGURES = "examples/figures"
 # Shown as code, never run here: it starts JAX's distributed runtime, which a process does once
 # (tests/test_readme.py runs it, as one process, in an interpreter of its own).
 SHOWN_NOT_RUN = {"estimate_many.py"}
-FROM_README = {"estimate_many.py": "Save as `estimate_many.py`"}
 MARKER = re.compile(r"<!--\s*(run|show):\s*([\w.-]+)\s*-->")
 
 log = logging.getLogger("mkdocs.hooks.jaxsample")
@@ -97,12 +100,6 @@ def _run_example(script: Path) -> dict:
 def on_files(files, config):
     _import_jaxsample()
     _runs.clear()
-    readme = (ROOT / "README.md").read_text()
-    for name, phrase in FROM_README.items():
-        found = re.search(re.escape(phrase) + r".*?^```python\n(.*?)^```", readme, re.S | re.M)
-        if found is None:
-            raise PluginError(f"README.md has no ```python block after {phrase!r} (the docs show it as {name})")
-        _runs[name] = {"source": found.group(1), "output": "", "figures": [], "seconds": 0.0}
     for script in sorted(EXAMPLES.glob("*.py")):
         if script.name in SHOWN_NOT_RUN:
             source = script.read_text()
@@ -264,6 +261,52 @@ def public_names(files) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
+# Measured results, read from benchmarks/results/
+# ---------------------------------------------------------------------------------------------
+
+RESULTS = ROOT / "benchmarks" / "results"
+RESULTS_MARKER = re.compile(r"<!--\s*results(-table)?:\s*([\w.-]+)(?:#([^>]*?))?\s*-->")
+HEADING = re.compile(r"(#+)\s+(.*?)\s*$")
+
+
+def results_markdown(table_only: bool, name: str, section: str | None, page_uri: str) -> str:
+    """The text of benchmarks/results/NAME (or of its section headed SECTION, up to the next heading
+    of the same level), or only the first table in it, followed by the file it came from. Its
+    headings are moved down two levels, to sit under the page's own; the file's title is named in
+    the source line."""
+    path = RESULTS / name
+    marker = f"<!-- results{'-table' if table_only else ''}: {name}{'#' + section if section else ''} -->"
+    if not path.is_file():
+        raise PluginError(f"{page_uri}: {marker} names no file in benchmarks/results/")
+    lines = path.read_text().splitlines()
+    title = next((m.group(2) for line in lines if (m := HEADING.match(line)) and len(m.group(1)) == 1), name)
+    if section:
+        section = section.strip()
+        start = next((i for i, line in enumerate(lines) if (m := HEADING.match(line)) and m.group(2) == section), None)
+        if start is None:
+            raise PluginError(f"{page_uri}: {marker}: benchmarks/results/{name} has no heading {section!r}")
+        level = len(HEADING.match(lines[start]).group(1))
+        end = next((i for i in range(start + 1, len(lines))
+                    if (m := HEADING.match(lines[i])) and len(m.group(1)) <= level), len(lines))
+        body = lines[start + 1:end]
+    else:
+        body = [line for line in lines if not ((m := HEADING.match(line)) and len(m.group(1)) == 1)]
+    if table_only:
+        first = next((i for i, line in enumerate(body) if line.startswith("|")), None)
+        if first is None:
+            raise PluginError(f"{page_uri}: {marker}: no table there")
+        end = next((i for i in range(first, len(body)) if not body[i].startswith("|")), len(body))
+        body = body[first:end]
+    lines, body = body, []
+    for line in lines:
+        if line.startswith("|") and body and body[-1].strip() and not body[-1].startswith("|"):
+            body.append("")  # a table right under a line of text is a table in the file's eyes, not Markdown's
+        body.append("##" + line if HEADING.match(line) else line)
+    where = f"`benchmarks/results/{name}`" + (f", section \u201c{section}\u201d" if section else "")
+    return "\n".join(body).strip() + f"\n\nSource: {where}; the file's title: {title}.\n"
+
+
+# ---------------------------------------------------------------------------------------------
 # Pages whose code blocks run
 # ---------------------------------------------------------------------------------------------
 
@@ -311,7 +354,8 @@ def on_page_markdown(markdown, page, config, files):
         markdown = markdown.replace("<!-- public-names -->", public_names(files))
     if "<!-- sources-table -->" in markdown:
         markdown = markdown.replace("<!-- sources-table -->", sources_table())
-    leftover = re.search(r"<!--\s*(run|show|samplers-table|sources-table|public-names)\b[^>]*-->", markdown)
+    markdown = RESULTS_MARKER.sub(lambda m: results_markdown(bool(m.group(1)), m.group(2), m.group(3), uri), markdown)
+    leftover = re.search(r"<!--\s*(run|show|samplers-table|sources-table|public-names|results)\b[^>]*-->", markdown)
     if leftover:
         raise PluginError(f"{uri}: marker not understood: {leftover.group(0)}")
     return markdown
