@@ -14,6 +14,8 @@ Per-sample arrays have the shape of the batch of samples, `batch`; colour values
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
@@ -48,11 +50,11 @@ def channel_shape(owner: str, name: str, shape) -> tuple:
     return shape
 
 
-def _shape_of(owner: str, label: str, fn, dtype) -> tuple:
-    """The shape `fn(point_or_wo, wi)` gives for one pair of 3-vectors, by `jax.eval_shape`."""
+def _shape_of(owner: str, label: str, fn, obj, dtype) -> tuple:
+    """The shape `fn(obj, point_or_wo, wi)` gives for one pair of 3-vectors, by `jax.eval_shape`."""
     direction = jax.ShapeDtypeStruct((3,), dtype)
     try:
-        shape = jax.eval_shape(fn, direction, direction).shape
+        shape = jax.eval_shape(fn, obj, direction, direction).shape
     except (TypeError, ValueError) as error:
         raise ValueError(f"{owner}: {label} fails for one direction; its colour parameters must be scalars or one "
                          f"value per channel, shape (C,), of one count ({error})") from error
@@ -62,12 +64,33 @@ def _shape_of(owner: str, label: str, fn, dtype) -> tuple:
 def scene_channels(owner: str, brdf, lights, dtype=jnp.float32) -> tuple:
     """The channel shape of L_o at a shading point, () or (C,), read from the shapes of f_r and of
     each light's radiance for one direction (nothing is computed: `jax.eval_shape`). C is the
-    common count of every coloured factor; a factor with another count is a ValueError naming it."""
-    found = [("the BRDF's eval", _shape_of(owner, f"the BRDF's eval ({type(brdf).__name__})", brdf.eval, dtype))]
+    common count of every coloured factor; a factor with another count is a ValueError naming it.
+    The answer depends only on the scene's structure and its leaves' shapes and dtypes, and is
+    cached on them: a call with a scene already seen costs a flatten, not a trace."""
+    lights = tuple(lights)
+    leaves, treedef = jax.tree_util.tree_flatten((brdf, lights))
+    try:
+        signature = (owner, treedef, tuple((jnp.shape(v), jnp.result_type(v)) for v in leaves), jnp.dtype(dtype))
+        hash(signature)
+    except TypeError:  # a leaf or static field that cannot be hashed: no cache
+        return _scene_channels(owner, brdf, lights, dtype)
+    return _cached_channels(signature)
+
+
+@functools.lru_cache(maxsize=256)
+def _cached_channels(signature) -> tuple:
+    owner, treedef, specs, dtype = signature
+    brdf, lights = jax.tree_util.tree_unflatten(treedef, [jax.ShapeDtypeStruct(s, d) for s, d in specs])
+    return _scene_channels(owner, brdf, lights, dtype)
+
+
+def _scene_channels(owner, brdf, lights, dtype) -> tuple:
+    found = [("the BRDF's eval", _shape_of(owner, f"the BRDF's eval ({type(brdf).__name__})",
+                                           lambda b, wo, wi: b.eval(wo, wi), brdf, dtype))]
     for k, light in enumerate(lights):
         label = f"light {k}'s radiance ({type(light).__name__})" if len(lights) > 1 else \
             f"the light's radiance ({type(light).__name__})"
-        found.append((label, _shape_of(owner, label, light.radiance_from, dtype)))
+        found.append((label, _shape_of(owner, label, lambda l, p, wi: l.radiance_from(p, wi), light, dtype)))
     counts = {shape[0] for _, shape in found if shape and shape[0] != 1}
     if len(counts) > 1:
         listed = ", ".join(f"{label}: {shape[0] if shape else 1}" for label, shape in found)
