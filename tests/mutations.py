@@ -293,7 +293,7 @@ MUTATIONS = [
       ("tests/estimators/test_gradient_errors.py",),
       "the measure-valued pair draws cos θ' from p_n instead of the product of two draws (biased)"),
     # ---- issue 14: keys, batches, names, invalid input ----
-    M("legacy-key-other-stream", "jaxsample/uniforms/philox.py",
+    M("legacy-key-other-stream", "jaxsample/_core/keys.py",
       "return jax.random.wrap_key_data(key)",
       "return jax.random.fold_in(jax.random.wrap_key_data(key), 1)",
       ("tests/samplers/test_keys_batches_names.py::test_a_legacy_key_draws_exactly_the_stream_of_the_typed_key_it_holds",

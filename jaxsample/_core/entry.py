@@ -29,6 +29,8 @@ from typing import Callable
 import jax
 import numpy as np
 
+from .keys import as_key
+
 __all__ = ["compiled_entry", "array_leaves"]
 
 _ARRAY_LEAVES = (jax.Array, np.ndarray, np.generic, bool, int, float, complex)
@@ -54,7 +56,7 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = (), check: Callable |
 
     `tuples`: static arguments that may be given as lists (sample counts per sampler); they are
     passed on as tuples. The argument named `key`, when there is one, goes through the key rule
-    (`uniforms.as_key`) first, so a wrong key gets the same message as without compilation.
+    (`keys.as_key`) first, so a wrong key gets the same message as without compilation.
     `check(arguments)`, given the bound arguments by name, runs before anything is traced: the
     checks that need concrete values (a zero-length vector, a point inside a light) see them there.
     """
@@ -72,8 +74,6 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = (), check: Callable |
 
         @functools.wraps(fn)
         def entry(*args, **kwargs):
-            from ..uniforms import as_key
-
             bound = signature.bind(*args, **kwargs)
             arguments = bound.arguments
             for name in tuples:
