@@ -1508,6 +1508,17 @@ MUTATIONS = [
       "    parts = [p if isinstance(p, np.ndarray) else _object_array([p], ()) for p in parts]", "",
       ("tests/estimators/test_gradient_programs.py::test_lanes_unstack_a_vector_into_scalars",),
       "jnp.unstack of a vector gives lanes holding a bare array, not 0-d cells: a shape error downstream"),
+    # ---- imports follow the layers downward and make no cycle, function-level ones included ----
+    M("import-upward-from-core-entry", "jaxsample/_core/entry.py",
+      "            bound = signature.bind(*args, **kwargs)\n",
+      "            from ..uniforms import as_key\n\n            bound = signature.bind(*args, **kwargs)\n",
+      ("tests/test_import_graph.py::test_no_module_imports_a_layer_above_its_own",),
+      "the compiled entry (layer 1) imports uniforms (layer 2) inside the function: it still loads and runs"),
+    M("import-cycle-diagnostics-result", "jaxsample/estimators/diagnostics.py",
+      "    sample_count = np.asarray(n, np.float64)\n",
+      "    from .result import Statistics  # noqa: F401\n    sample_count = np.asarray(n, np.float64)\n",
+      ("tests/test_import_graph.py::test_the_package_has_no_import_cycle",),
+      "diagnostics imports the result types inside a function while result imports diagnostics: a cycle"),
 ]
 
 
