@@ -14,8 +14,8 @@ public estimator is such an entry: `estimate`, `expectation`, `estimate_mis`, `e
 What it returns goes through every check registered with `check_results_with`: the estimators'
 result module registers `warn_if_unreliable`, so an unreliable estimate returned by an eager call
 emits an `UnreliableEstimateWarning`. Inside an enclosing `jit`, `vmap` or `grad` nothing changes
-(a nested `jit` is inlined, and no value can be inspected). The checks are registered rather than
-imported because this module is the bottom layer and the results it checks are defined above it. A call
+(a nested `jit` is inlined, and no value can be inspected). The checks are registered, not
+imported: this module is the bottom layer, and the results they check are defined above it. A call
 whose static arguments cannot be hashed (a traced `n`, an unhashable callable) or whose traced
 arguments are not arrays or numbers runs the function as written (a string given where a number may
 also go, such as `baseline="leave_one_out"`, is static for that call, not a reason to run uncompiled), so that its own checks give
