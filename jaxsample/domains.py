@@ -2,7 +2,8 @@
 
 A sampler's `domain()` returns a plain description of the set its density lives on and the measure
 the density is over (`Directions`, `Interval`, `Box`, `Disk`, `Triangle`, `DiscreteSet`, defined in
-`jaxsample.samplers.domain` and exported here). This module does the numerical work on a domain, in
+`jaxsample.samplers.domain` and exported here, with the pieces every rule is built from:
+`gauss_legendre_panels`, `graded_edges`, `quantile_edges`, `bin_index` and `Cells`). This module does the numerical work on a domain, in
 float64 NumPy. The checks (`jaxsample.testing`) import it and the samplers do not, so importing a
 sampler never loads it:
 
@@ -17,7 +18,8 @@ sampler never loads it:
 - `contains(domain, x)`: whether points lie in the domain (to float tolerance).
 
 A domain class of a user's own (not one of the six) is used through its own methods of the same
-names: `domain.quadrature()`, `domain.cells(pilot, n_cells)`, `domain.contains(x)`.
+names: `domain.quadrature()`, `domain.cells(pilot, n_cells)`, `domain.contains(x)` (the samplers'
+spherical polygons and microfacet directions are such classes).
 """
 
 from __future__ import annotations
@@ -27,67 +29,13 @@ import functools
 
 import numpy as np
 
-from .samplers.domain import GAUSS_ORDER, Box, Directions, DiscreteSet, Disk, Interval, Triangle
-
-
-def bin_index(edges: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Index i of the bin [edges[i], edges[i+1]) holding x; points outside go to the end bins."""
-    return np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
-
-
-def gauss_legendre_panels(edges: np.ndarray, order: int = GAUSS_ORDER) -> tuple[np.ndarray, np.ndarray]:
-    """Composite Gauss–Legendre nodes and weights on consecutive panels [edges[i], edges[i+1]]."""
-    edges = np.unique(np.asarray(edges, dtype=np.float64))
-    x, w = np.polynomial.legendre.leggauss(order)
-    lo, hi = edges[:-1, None], edges[1:, None]
-    half = 0.5 * (hi - lo)
-    nodes = (lo + hi) * 0.5 + half * x[None, :]
-    weights = half * w[None, :]
-    return nodes.ravel(), weights.ravel()
-
-
-def graded_edges(a: float, b: float, toward: str = "both", n_geometric: int = 60,
-                 n_uniform: int = 16, smallest: float = 1e-14) -> np.ndarray:
-    """Panel edges on [a, b]: uniform panels plus panels graded geometrically toward a and/or b.
-
-    Geometric grading (ratio ~1.7 over 14 decades) resolves a density that varies on any scale
-    near an end point — a Phong lobe of width 1e-7 at the pole — with a fixed number of nodes.
-    """
-    length = b - a
-    if length <= 0:
-        return np.array([a, b])
-    parts = [np.linspace(a, b, n_uniform + 1)]
-    ladder = length * np.geomspace(smallest, 1.0, n_geometric)
-    if toward in ("both", "low"):
-        parts.append(a + ladder)
-    if toward in ("both", "high"):
-        parts.append(b - ladder)
-    edges = np.unique(np.clip(np.concatenate(parts), a, b))
-    return edges
+from .samplers.domain import (GAUSS_ORDER, Box, Cells, Directions, DiscreteSet, Disk, Interval, Triangle, bin_index,
+                               gauss_legendre_panels, graded_edges, quantile_edges)
 
 
 def _split_at_breaks(a: float, b: float, breaks) -> np.ndarray:
     inner = [float(t) for t in np.ravel(breaks) if a < t < b]
     return np.array(sorted({a, b, *inner}))
-
-
-def quantile_edges(values: np.ndarray, n_bins: int, low: float, high: float) -> np.ndarray:
-    """Bin edges at the pilot quantiles k/n_bins, spanning [low, high], duplicates removed."""
-    interior = np.quantile(values, np.arange(1, n_bins) / n_bins) if len(values) else []
-    return np.unique(np.concatenate([[low], np.clip(interior, low, high), [high]]))
-
-
-@dataclasses.dataclass
-class Cells:
-    """A partition for the chi-square test: per-cell quadrature and a point -> cell map."""
-
-    n_cells: int
-    points: np.ndarray  # quadrature nodes, float64, shape (M, *event_shape)
-    weights: np.ndarray  # (M,)
-    cell_of_point: np.ndarray  # (M,) int: which cell each node integrates
-    assign: callable  # samples (N, *event_shape) float64 -> (N,) int in [0, n_cells), or -1 outside
-
-
 
 
 @functools.singledispatch

@@ -293,7 +293,7 @@ MUTATIONS = [
       ("tests/estimators/test_gradient_errors.py",),
       "the measure-valued pair draws cos θ' from p_n instead of the product of two draws (biased)"),
     # ---- issue 14: keys, batches, names, invalid input ----
-    M("legacy-key-other-stream", "jaxsample/uniforms/philox.py",
+    M("legacy-key-other-stream", "jaxsample/_core/keys.py",
       "return jax.random.wrap_key_data(key)",
       "return jax.random.fold_in(jax.random.wrap_key_data(key), 1)",
       ("tests/samplers/test_keys_batches_names.py::test_a_legacy_key_draws_exactly_the_stream_of_the_typed_key_it_holds",
@@ -619,8 +619,8 @@ MUTATIONS = [
       "    if replicates <= 1:\n        return _normal_quantile", "    if True:\n        return _normal_quantile",
       ("tests/estimators/test_diagnostics.py::test_replicate_intervals_cover_at_their_level",),
       "replicate intervals at 1.96 instead of Student's t: coverage 88-94 %"),
-    M("no-eager-warning", "jaxsample/_core/entry.py",
-      "warn_if_unreliable(result, fn.__name__)", "result = result",
+    M("no-eager-warning", "jaxsample/estimators/result.py",
+      "@check_results_with\n", "",
       ("tests/estimators/test_diagnostics.py::test_an_unreliable_eager_estimate_warns_and_a_jitted_one_does_not",),
       "an eager unreliable estimate is returned silently"),
     M("until-khat-dropped", "jaxsample/estimators/until.py",
@@ -1529,6 +1529,17 @@ MUTATIONS = [
       "    parts = [p if isinstance(p, np.ndarray) else _object_array([p], ()) for p in parts]", "",
       ("tests/estimators/test_gradient_programs.py::test_lanes_unstack_a_vector_into_scalars",),
       "jnp.unstack of a vector gives lanes holding a bare array, not 0-d cells: a shape error downstream"),
+    # ---- imports follow the layers downward and make no cycle, function-level ones included ----
+    M("import-upward-from-core-entry", "jaxsample/_core/entry.py",
+      "            bound = signature.bind(*args, **kwargs)\n",
+      "            from ..uniforms import as_key\n\n            bound = signature.bind(*args, **kwargs)\n",
+      ("tests/test_import_graph.py::test_no_module_imports_a_layer_above_its_own",),
+      "the compiled entry (layer 1) imports uniforms (layer 2) inside the function: it still loads and runs"),
+    M("import-cycle-diagnostics-result", "jaxsample/estimators/diagnostics.py",
+      "    sample_count = np.asarray(n, np.float64)\n",
+      "    from .result import Statistics  # noqa: F401\n    sample_count = np.asarray(n, np.float64)\n",
+      ("tests/test_import_graph.py::test_the_package_has_no_import_cycle",),
+      "diagnostics imports the result types inside a function while result imports diagnostics: a cycle"),
 ]
 
 

@@ -11,9 +11,11 @@ public estimator is such an entry: `estimate`, `expectation`, `estimate_mis`, `e
 `estimate_antithetic`, `estimate_control_variate`, `estimate_grad`, `expectation_grad`,
 `estimate_until`, `scene.shade` and `scene.shade_grad`.
 
-Called eagerly, the estimates it returns are checked (`estimators.diagnostics.warn_if_unreliable`):
-an unreliable one emits an `UnreliableEstimateWarning`. Inside an enclosing `jit`, `vmap` or `grad`
-nothing changes (a nested `jit` is inlined, and no value can be inspected). A call
+What it returns goes through every check registered with `check_results_with`: the estimators'
+result module registers `warn_if_unreliable`, so an unreliable estimate returned by an eager call
+emits an `UnreliableEstimateWarning`. Inside an enclosing `jit`, `vmap` or `grad` nothing changes
+(a nested `jit` is inlined, and no value can be inspected). The checks are registered, not
+imported: this module is the bottom layer, and the results they check are defined above it. A call
 whose static arguments cannot be hashed (a traced `n`, an unhashable callable) or whose traced
 arguments are not arrays or numbers runs the function as written (a string given where a number may
 also go, such as `baseline="leave_one_out"`, is static for that call, not a reason to run uncompiled), so that its own checks give
@@ -29,9 +31,21 @@ from typing import Callable
 import jax
 import numpy as np
 
-__all__ = ["compiled_entry", "array_leaves"]
+from .keys import as_key
+
+__all__ = ["compiled_entry", "array_leaves", "check_results_with"]
 
 _ARRAY_LEAVES = (jax.Array, np.ndarray, np.generic, bool, int, float, complex)
+
+# check(result, owner) for what every entry returns, in the order registered.
+_RESULT_CHECKS: list[Callable] = []
+
+
+def check_results_with(check: Callable) -> Callable:
+    """Register `check(result, owner)` to run on the value every compiled entry returns (`owner`: the
+    entry's name); a check that warns uses `stacklevel=3` to point at the entry's caller."""
+    _RESULT_CHECKS.append(check)
+    return check
 
 
 def array_leaves(tree, *, concrete: bool = False) -> bool:
@@ -54,7 +68,7 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = (), check: Callable |
 
     `tuples`: static arguments that may be given as lists (sample counts per sampler); they are
     passed on as tuples. The argument named `key`, when there is one, goes through the key rule
-    (`uniforms.as_key`) first, so a wrong key gets the same message as without compilation.
+    (`keys.as_key`) first, so a wrong key gets the same message as without compilation.
     `check(arguments)`, given the bound arguments by name, runs before anything is traced: the
     checks that need concrete values (a zero-length vector, a point inside a light) see them there.
     """
@@ -72,8 +86,6 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = (), check: Callable |
 
         @functools.wraps(fn)
         def entry(*args, **kwargs):
-            from ..uniforms import as_key
-
             bound = signature.bind(*args, **kwargs)
             arguments = bound.arguments
             for name in tuples:
@@ -86,14 +98,13 @@ def compiled_entry(*static: str, tuples: tuple[str, ...] = (), check: Callable |
             text = frozenset(name for name, value in arguments.items()
                              if name not in static and isinstance(value, str))
             dynamic = [value for name, value in arguments.items() if name not in static and name not in text]
-            from ..estimators.diagnostics import warn_if_unreliable
-
             if (all(_hashable(arguments[name]) for name in static if name in arguments)
                     and array_leaves(dynamic)):
                 result = compiled(text)(*bound.args, **bound.kwargs)
             else:
                 result = fn(*bound.args, **bound.kwargs)
-            warn_if_unreliable(result, fn.__name__)
+            for check_result in _RESULT_CHECKS:
+                check_result(result, fn.__name__)
             return result
 
         return entry

@@ -23,8 +23,9 @@ numbers, kept in constant memory as the samples stream by, say when it is not:
 nonzero (the values the tail fit needs; a gradient component may also be 0 throughout) and k-hat is
 below 0.5 (or could not be fitted: n below 25).
 An estimate computed eagerly (outside `jit`, `vmap` and `grad`) that is not reliable emits an
-`UnreliableEstimateWarning` naming what failed and what to try; under a transformation the flags
-are all there is (no Python code runs on the values).
+`UnreliableEstimateWarning` naming what failed and what to try (`problems`; the warning is given by
+`result.warn_if_unreliable`); under a transformation the flags are all there is (no Python code
+runs on the values). Everything here works on arrays: nothing needs the result types.
 
 The standard error has a floor at the float rounding of the values averaged: each Y = f/p carries
 a relative rounding error of a few ulps, partly systematic (the same error for every sample of a
@@ -34,7 +35,6 @@ constant Y), so the error bar is never below `ROUNDING_ULPS` ulps of the mean |Y
 from __future__ import annotations
 
 import math
-import warnings
 
 import jax
 import jax.numpy as jnp
@@ -42,7 +42,7 @@ import numpy as np
 
 __all__ = ["UnreliableEstimateWarning", "tail_size", "tail_bins", "chunk_tail", "merge_tails", "empty_tail", "largest",
            "pareto_khat",
-           "verdict", "warn_if_unreliable", "KHAT_VARIANCE", "KHAT_MEAN", "MAX_TAIL", "ROUNDING_ULPS"]
+           "verdict", "problems", "KHAT_VARIANCE", "KHAT_MEAN", "MAX_TAIL", "ROUNDING_ULPS"]
 
 KHAT_VARIANCE = 0.5   # k-hat at or above: infinite variance, the stderr means nothing
 KHAT_MEAN = 0.7       # k-hat at or above: the mean itself is unreliable
@@ -232,18 +232,22 @@ def verdict(mean, stderr, khat, nonzero, n, gradient: bool = False) -> jax.Array
     return finite & enough & ~heavy
 
 
-def _problems(est) -> list[str]:
-    """The one-line reasons an eager, concrete estimate is not reliable (empty when it is)."""
+def problems(mean, stderr, khat, nonzero, n, gradient: bool = False) -> list[str]:
+    """The one-line reasons a concrete estimate is not reliable (empty when it is): its fields
+    (`mean`, `stderr`, `khat`, `nonzero`: arrays or pytrees of them, as an estimate holds them),
+    `n` its sample count (one, or a batch's own count per member) and whether it is a gradient."""
     def flat(field):   # a field may be a pytree (a gradient shaped like the parameters)
         leaves = [np.ravel(np.asarray(leaf)) for leaf in jax.tree_util.tree_leaves(field)]
         return np.concatenate(leaves) if leaves else np.zeros(0)
 
-    def counts_of(leaf):   # the sample count of every value: n, or a batch's own n_used per member
-        n = np.asarray(est.n, np.float64)
-        return np.broadcast_to(n.reshape(n.shape + (1,) * (np.ndim(leaf) - n.ndim)), np.shape(leaf))
+    sample_count = np.asarray(n, np.float64)
 
-    mean, stderr, khat, nonzero = (flat(getattr(est, name)) for name in ("mean", "stderr", "khat", "nonzero"))
-    n = flat(jax.tree_util.tree_map(counts_of, est.nonzero))
+    def counts_of(leaf):   # the sample count of every value: n, or a batch's own n_used per member
+        return np.broadcast_to(sample_count.reshape(sample_count.shape + (1,) * (np.ndim(leaf) - sample_count.ndim)),
+                               np.shape(leaf))
+
+    n = flat(jax.tree_util.tree_map(counts_of, nonzero))
+    mean, stderr, khat, nonzero = (flat(field) for field in (mean, stderr, khat, nonzero))
     if np.iscomplexobj(khat):
         khat = np.fmax(khat.real, khat.imag)
         nonzero = np.maximum(nonzero.real, nonzero.imag)
@@ -254,7 +258,6 @@ def _problems(est) -> list[str]:
                        "out of range, or the sum overflowed)")
     counts = np.rint(nonzero * n)
     required = np.asarray(required_nonzero(n), np.float64)
-    gradient = getattr(est, "gradient", False)
     empty = finite & (counts == 0)
     if empty.any() and not gradient:
         reasons.append(f"all {n[empty].max():.0f} values f/p are 0: either the integral is 0 or the sampler never "
@@ -274,20 +277,3 @@ def _problems(est) -> list[str]:
                        "the proposal's tails are lighter than the integrand's: orient the lobe to the "
                        "integrand, widen the proposal or mix in a broader one")
     return reasons
-
-
-def warn_if_unreliable(result, owner: str) -> None:
-    """Emit one `UnreliableEstimateWarning` per unreliable estimate in `result` (an estimate or a
-    pytree of them), when its values are concrete (an eager call); nothing under a transformation."""
-    from .result import Estimate
-    from .until import EstimateUntil
-
-    found = [leaf for leaf in jax.tree_util.tree_leaves(result, is_leaf=lambda x: isinstance(x, (Estimate, EstimateUntil)))
-             if isinstance(leaf, (Estimate, EstimateUntil))]
-    for est in found:
-        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(est)):
-            return
-        reasons = _problems(est)
-        if reasons:
-            warnings.warn(f"{owner}: unreliable estimate: " + "; ".join(reasons) + " (see est.diagnostics)",
-                          UnreliableEstimateWarning, stacklevel=3)

@@ -1,17 +1,39 @@
-"""The result of every estimator: `Estimate`, a pytree of the mean, its standard error and diagnostics."""
+"""The result of every estimator: `Estimate`, a pytree of the mean, its standard error and diagnostics.
+
+`Statistics` holds the seven fields shaped like f's value that every streamed estimate carries;
+`Estimate` and `estimate_until`'s `EstimateUntil` add their counts to it. `warn_if_unreliable`,
+registered with the compiled entry (`jaxsample._core.entry`), warns about an unreliable one
+returned by an eager call.
+"""
 
 from __future__ import annotations
 
 import math
+import warnings
 
 import jax
 
+from .._core.entry import check_results_with
 from .._core.pytree import Pytree, static_field
+from .diagnostics import UnreliableEstimateWarning, problems, verdict
 
 _NORMAL_QUANTILE_975 = 1.959963984540054
 
 
-class Estimate(Pytree):
+class Statistics(Pytree):
+    """The statistics of a stream of values Y = f/p, each shaped like f's value (`Estimate` says
+    what each is); the base of `Estimate` and `EstimateUntil`."""
+
+    mean: jax.Array
+    stderr: jax.Array
+    variance: jax.Array
+    max_abs: jax.Array
+    ess: jax.Array
+    khat: jax.Array
+    nonzero: jax.Array
+
+
+class Estimate(Statistics):
     """A Monte Carlo estimate; a pytree (mean, stderr and diagnostics are leaves).
 
     - `mean`: the estimate of the integral (shape of f's value).
@@ -39,13 +61,6 @@ class Estimate(Pytree):
     estimator cannot raise, so test `jnp.isfinite(est.stderr)`.
     """
 
-    mean: jax.Array
-    stderr: jax.Array
-    variance: jax.Array
-    max_abs: jax.Array
-    ess: jax.Array
-    khat: jax.Array
-    nonzero: jax.Array
     n: int = static_field(default=0)
     replicates: int = static_field(default=1)
     gradient: bool = static_field(default=False)
@@ -54,7 +69,6 @@ class Estimate(Pytree):
     def reliable(self) -> jax.Array:
         """Whether mean ± stderr can be trusted: finite, enough nonzero Y, Pareto k-hat below 0.5
         (a boolean array shaped like `mean`; see `jaxsample.estimators.diagnostics`)."""
-        from .diagnostics import verdict
         return jax.tree_util.tree_map(lambda m, s, k, z: verdict(m, s, k, z, self.n, self.gradient),
                                       self.mean, self.stderr, self.khat, self.nonzero)
 
@@ -92,6 +106,21 @@ class Estimate(Pytree):
         """
         k = 1.0 / math.sqrt(1.0 - level)
         return self.mean - k * self.stderr, self.mean + k * self.stderr
+
+
+@check_results_with
+def warn_if_unreliable(result, owner: str) -> None:
+    """Emit one `UnreliableEstimateWarning` per unreliable estimate in `result` (an estimate or a
+    pytree of them), when its values are concrete (an eager call); nothing under a transformation."""
+    found = [leaf for leaf in jax.tree_util.tree_leaves(result, is_leaf=lambda x: isinstance(x, Statistics))
+             if isinstance(leaf, Statistics)]
+    for est in found:
+        if any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(est)):
+            return
+        reasons = problems(est.mean, est.stderr, est.khat, est.nonzero, est.n, getattr(est, "gradient", False))
+        if reasons:
+            warnings.warn(f"{owner}: unreliable estimate: " + "; ".join(reasons) + " (see est.diagnostics)",
+                          UnreliableEstimateWarning, stacklevel=3)
 
 
 def normal_interval(mean, stderr, level: float = 0.95):

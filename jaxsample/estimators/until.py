@@ -48,7 +48,7 @@ from .._core.counts import check_count
 from .._core.entry import compiled_entry
 from ..samplers.base import check_sampler, check_uniforms, checked
 from .._core.params import resolve_float_dtype
-from .._core.pytree import Pytree, static_field
+from .._core.pytree import static_field
 from ..uniforms import Halton, Lattice, Random, Sobol, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, offset_at
 from .diagnostics import tail_bins, verdict
@@ -56,12 +56,12 @@ from .engine import (_MAX_STEPS, _check_chunk_size, _chunk, _empty_moments, _mer
                      shard_over)
 from .integrand import integrand_layout
 from .plain import check_mode, over_batch, packed_values
-from .result import interval, interval_quantile
+from .result import Statistics, interval, interval_quantile
 
 __all__ = ["EstimateUntil", "estimate_until"]
 
 
-class EstimateUntil(Pytree):
+class EstimateUntil(Statistics):
     """The result of `estimate_until`: an estimate from a data-dependent number of samples.
 
     `mean`, `stderr`, `variance`, `max_abs`, `ess`, `khat`, `nonzero`, `reliable` and `diagnostics` as in
@@ -70,13 +70,6 @@ class EstimateUntil(Pytree):
     reached first).
     """
 
-    mean: jax.Array
-    stderr: jax.Array
-    variance: jax.Array
-    max_abs: jax.Array
-    ess: jax.Array
-    khat: jax.Array
-    nonzero: jax.Array
     n_used: jax.Array
     converged: jax.Array
     max_n: int = static_field(default=0)

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.numerics import safe_div, safe_sqrt
+from .domain import Cells, bin_index, gauss_legendre_panels, quantile_edges
 
 
 # Vectors are tuples of their three components (arrays of one shape), split once where a method
@@ -296,8 +297,6 @@ class SphericalPolygon:
         return k, s, t
 
     def quadrature(self):
-        from ..domains import gauss_legendre_panels
-
         edges = np.linspace(0.0, 1.0, self.n_panels + 1)
         s, ws = gauss_legendre_panels(edges, self.order)
         t, wt = gauss_legendre_panels(edges, self.order)
@@ -309,8 +308,6 @@ class SphericalPolygon:
         return np.concatenate(points), np.concatenate(weights)
 
     def cells(self, pilot, n_cells):
-        from ..domains import Cells, bin_index, gauss_legendre_panels, quantile_edges
-
         count = len(self.vertices)
         per_triangle = max(n_cells // count, 4)
         n_t = max(2, int(round(np.sqrt(per_triangle / 2.0))))

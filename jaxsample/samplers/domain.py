@@ -3,8 +3,12 @@ over, as plain data.
 
 A sampler only names its domain. The checks (`jaxsample.testing`) turn a domain into a quadrature
 rule and chi-square cells with the geometry in `jaxsample.domains` (which also exports these
-classes), so importing a sampler does not import the checks' grids and binning — as in Mitsuba 3's `chi2.py`, where the domains' binning lives with the
-test and never with the warps.
+classes), so importing a sampler does not import the checks' rules for these six kinds — as in
+Mitsuba 3's `chi2.py`, where the domains' binning lives with the test and never with the warps.
+A domain of a kind of its own (a spherical polygon, the microfacet directions) brings its own
+`quadrature()`, `cells()` and `contains()`, built, as `jaxsample.domains` builds its rules, from the
+pieces at the end of this module: Gauss–Legendre panels (`gauss_legendre_panels`, `graded_edges`)
+and cells at pilot quantiles (`quantile_edges`, `bin_index`, `Cells`), plain NumPy.
 
 Besides the set and its measure, a domain states where its density may jump or peak (`breaks`),
 because a quadrature rule is only accurate where it knows of them, and the few settings of its
@@ -129,3 +133,59 @@ class DiscreteSet:
     size: int
     event_shape = ()
     measure = "counting"
+
+
+# ---- the pieces of a rule: what `jaxsample.domains` and a domain of its own build theirs from ----
+
+
+def bin_index(edges: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Index i of the bin [edges[i], edges[i+1]) holding x; points outside go to the end bins."""
+    return np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+
+
+def gauss_legendre_panels(edges: np.ndarray, order: int = GAUSS_ORDER) -> tuple[np.ndarray, np.ndarray]:
+    """Composite Gauss–Legendre nodes and weights on consecutive panels [edges[i], edges[i+1]]."""
+    edges = np.unique(np.asarray(edges, dtype=np.float64))
+    x, w = np.polynomial.legendre.leggauss(order)
+    lo, hi = edges[:-1, None], edges[1:, None]
+    half = 0.5 * (hi - lo)
+    nodes = (lo + hi) * 0.5 + half * x[None, :]
+    weights = half * w[None, :]
+    return nodes.ravel(), weights.ravel()
+
+
+def graded_edges(a: float, b: float, toward: str = "both", n_geometric: int = 60,
+                 n_uniform: int = 16, smallest: float = 1e-14) -> np.ndarray:
+    """Panel edges on [a, b]: uniform panels plus panels graded geometrically toward a and/or b.
+
+    Geometric grading (ratio ~1.7 over 14 decades) resolves a density that varies on any scale
+    near an end point — a Phong lobe of width 1e-7 at the pole — with a fixed number of nodes.
+    """
+    length = b - a
+    if length <= 0:
+        return np.array([a, b])
+    parts = [np.linspace(a, b, n_uniform + 1)]
+    ladder = length * np.geomspace(smallest, 1.0, n_geometric)
+    if toward in ("both", "low"):
+        parts.append(a + ladder)
+    if toward in ("both", "high"):
+        parts.append(b - ladder)
+    edges = np.unique(np.clip(np.concatenate(parts), a, b))
+    return edges
+
+
+def quantile_edges(values: np.ndarray, n_bins: int, low: float, high: float) -> np.ndarray:
+    """Bin edges at the pilot quantiles k/n_bins, spanning [low, high], duplicates removed."""
+    interior = np.quantile(values, np.arange(1, n_bins) / n_bins) if len(values) else []
+    return np.unique(np.concatenate([[low], np.clip(interior, low, high), [high]]))
+
+
+@dataclasses.dataclass
+class Cells:
+    """A partition for the chi-square test: per-cell quadrature and a point -> cell map."""
+
+    n_cells: int
+    points: np.ndarray  # quadrature nodes, float64, shape (M, *event_shape)
+    weights: np.ndarray  # (M,)
+    cell_of_point: np.ndarray  # (M,) int: which cell each node integrates
+    assign: callable  # samples (N, *event_shape) float64 -> (N,) int in [0, n_cells), or -1 outside

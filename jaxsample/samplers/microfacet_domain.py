@@ -17,8 +17,8 @@ stretch is undone and the cut is a coordinate line:
   ψ are graded toward ψ = ±π/2, where ρ* runs off to infinity (over an angle ~c: 1e-7 at grazing).
 - reflected directions: the same chart pushed forward by wi = 2 (wo·m) m - wo, dω_i = 4 (wo·m) dω_m.
 
-Imported on first use of the checks (`quadrature`, `cells`), never by the samplers' import; it uses
-`jaxsample.domains`'s panels and `Cells`.
+Imported on first use of the checks (`quadrature`, `cells`), never by the samplers' import; it
+builds its rules from the panels and `Cells` of `jaxsample.samplers.domain`.
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+
+from .domain import Cells, bin_index, gauss_legendre_panels, graded_edges, quantile_edges
 
 _ORDER = 8  # Gauss–Legendre nodes per panel
 _V_TOLERANCE = 1e-3  # a sample this far past the cut (v > 1) in float32 rounding still counts inside
@@ -135,7 +137,6 @@ class MicrofacetDirections:
 
     # ---- panels ---------------------------------------------------------------------------------
     def _psi_edges(self):
-        from ..domains import graded_edges
         _, _, c = self._cut()
         if not np.isfinite(c):
             return np.linspace(-np.pi, np.pi, 2 * self.n_uniform_psi + 1)
@@ -150,7 +151,6 @@ class MicrofacetDirections:
     def _nodes(global_edges, cell_edges):
         """Gauss–Legendre nodes of every cell [cell_edges[i], cell_edges[i+1]], each split at the
         global panel edges inside it: (nodes, weights, cell index)."""
-        from ..domains import gauss_legendre_panels
         nodes, weights, cells = [], [], []
         for i, (a, b) in enumerate(zip(cell_edges[:-1], cell_edges[1:])):
             inner = global_edges[(global_edges > a) & (global_edges < b)]
@@ -169,7 +169,6 @@ class MicrofacetDirections:
         return points.reshape(-1, 3), (w_psi[:, None] * w_v[None, :] * jacobian).ravel()
 
     def cells(self, pilot, n_cells):
-        from ..domains import Cells, bin_index, quantile_edges
         psi_p, v_p, inside = self._coordinates(pilot)
         psi_p, v_p = psi_p[inside], v_p[inside]
         n_psi = 8 if n_cells >= 32 else 2

@@ -1,5 +1,6 @@
 """Shared pieces of the replicated point sets (`lattice`, `halton`, `lhs`): the layout of R
-interleaved replicates, per-replicate random words, and parameter checks.
+interleaved replicates, per-replicate random words, the 32-bit hash `_mix32` (Halton's digit
+scrambles and the Latin hypercube's jitter), and parameter checks.
 
 Layout (the convention of `Source`): global index g belongs to replicate g mod R, as its point
 g div R. `replicate_layout` returns the point indices and replicate numbers of a window in one
@@ -24,6 +25,16 @@ from .philox import _alignment, _u32, philox4x32
 STREAM_LATTICE = 0x4C415454   # "LATT": the lattice shifts
 STREAM_HALTON = 0x48414C54    # "HALT": the digit permutations and tails
 STREAM_LHS = 0x4C485321       # "LHS!": the stratum permutations and the jitter
+
+
+def _mix32(x):
+    """A bijective 32-bit mix with _mix32(0) = 0 (two multiply-xorshift rounds; the constants of
+    C. Wellons' "lowbias32", found by his hash-prospector search)."""
+    x = x ^ (x >> _u32(16))
+    x = x * _u32(0x7FEB352D)
+    x = x ^ (x >> _u32(15))
+    x = x * _u32(0x846CA68B)
+    return x ^ (x >> _u32(16))
 
 
 def check_flag(owner: str, name: str, value) -> bool:

@@ -72,8 +72,8 @@ from .._core.pytree import static_field
 from .index import Index
 from .philox import _u32, bits_to_unit, philox4x32
 from .sobol import _reverse_bits, _scramble_reversed
-from .sources import Source, _check_replicates
-from ._replicated import STREAM_HALTON, Layout, check_dims, stack_lanes, store_all_but
+from .sources import Source, _check_replicates, register_source
+from ._replicated import STREAM_HALTON, Layout, _mix32, check_dims, stack_lanes, store_all_but
 
 __all__ = ["Halton", "halton_points", "halton_primes", "MAX_HALTON_DIMS"]
 
@@ -180,16 +180,6 @@ def _digit_value(d, base: int):
         t, q = d
         return t - q * _u32(base)
     return d
-
-
-def _mix32(x):
-    """A bijective 32-bit mix with _mix32(0) = 0 (two multiply-xorshift rounds; the constants of
-    C. Wellons' "lowbias32", found by his hash-prospector search)."""
-    x = x ^ (x >> _u32(16))
-    x = x * _u32(0x7FEB352D)
-    x = x ^ (x >> _u32(15))
-    x = x * _u32(0x846CA68B)
-    return x ^ (x >> _u32(16))
 
 
 def _below(h, m: int):
@@ -444,6 +434,7 @@ def halton_points(index, dims: int) -> jax.Array:
     return jnp.stack(columns, axis=-1)
 
 
+@register_source
 class Halton(Source):
     """Scrambled Halton points (see the module docstring) in R independent replicates, up to 1024 dims.
 

@@ -67,7 +67,7 @@ from .index import Index, as_index, floordiv
 from .philox import _alignment, _u32, bits_to_unit
 from .sobol import _reverse_bits, _reverse_bits_np
 from .._core.pytree import static_field
-from .sources import Source, _check_replicates
+from .sources import Source, _check_replicates, register_source
 from ._replicated import (STREAM_LATTICE, Layout, check_dims, check_flag, replicate_words, stack_lanes,
                           wide_mulhi)
 
@@ -212,6 +212,7 @@ def tent_bits(w: jax.Array) -> jax.Array:
     return (w << _u32(1)) ^ (_u32(0) - (w >> _u32(31)))
 
 
+@register_source
 class Lattice(Source):
     """A randomly shifted, extensible rank-1 lattice (Cools–Kuo–Nuyens vector), R replicates.
 

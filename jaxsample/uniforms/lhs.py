@@ -40,9 +40,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .philox import _u32, bits_to_unit
-from .halton import _mix32
-from .sources import Source, _check_replicates
-from ._replicated import STREAM_LHS, Layout, replicate_words, stack_lanes, store_all_but
+from .sources import Source, _check_replicates, register_source
+from ._replicated import STREAM_LHS, Layout, _mix32, replicate_words, stack_lanes, store_all_but
 
 __all__ = ["LatinHypercube", "stratum_permutation"]
 
@@ -84,6 +83,7 @@ def stratum_permutation(p, keys, m: int):
                               lambda y: jnp.where(y >= _u32(m), _bijection(y, keys, bits), y), y)
 
 
+@register_source
 class LatinHypercube(Source):
     """Latin hypercube points (see the module docstring), R independent replicates (default 16).
 

@@ -521,30 +521,31 @@ def _padded_generator(shuffle, scramble_a, scramble_b, bits: int):
 
 SourceLike = Union[str, Source]
 
+# The sources `as_source` makes from a name, in the order they were registered: each class
+# registers itself where it is defined (`register_source`), so this module needs none of the
+# point sets that subclass `Source` in their own modules.
+_BY_NAME: dict[str, type[Source]] = {}
+
+
+def register_source(cls: type[Source]) -> type[Source]:
+    """Class decorator: `as_source(cls.name)` makes `cls()` (the source with default settings)."""
+    _BY_NAME[cls.name] = cls
+    return cls
+
+
+register_source(Random)
+register_source(Stratified)
+register_source(Sobol)
+
 
 def as_source(uniforms: SourceLike) -> Source:
-    """"random" | "stratified" | "sobol" | "lattice" | "halton" | "lhs" (default settings) or a `Source` instance."""
+    """A registered name ("random" | "stratified" | "sobol" | "lattice" | "halton" | "lhs": the source
+    with default settings) or a `Source` instance."""
     if isinstance(uniforms, Source):
         return uniforms
-    if uniforms == "random":
-        return Random()
-    if uniforms == "stratified":
-        return Stratified()
-    if uniforms == "sobol":
-        return Sobol()
-    # The point sets of their own modules (imported here: they subclass `Source`).
-    if uniforms == "lattice":
-        from .lattice import Lattice
-        return Lattice()
-    if uniforms == "halton":
-        from .halton import Halton
-        return Halton()
-    if uniforms == "lhs":
-        from .lhs import LatinHypercube
-        return LatinHypercube()
-    raise ValueError(f"uniforms: must be 'random', 'stratified', 'sobol', 'lattice', 'halton', 'lhs' or a "
-                     f"Source; "
-                     f"got {uniforms!r}")
+    if isinstance(uniforms, str) and uniforms in _BY_NAME:
+        return _BY_NAME[uniforms]()
+    raise ValueError(f"uniforms: must be {', '.join(map(repr, _BY_NAME))} or a Source; got {uniforms!r}")
 
 
 def uniform_block(uniforms: SourceLike, key: jax.Array, offset, count: int, dims: int, *,
