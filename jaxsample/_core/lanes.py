@@ -581,7 +581,8 @@ def _interpreting(strict: bool) -> bool:
         _warned = True
         warnings.warn(f"jaxsample: the per-coordinate lane interpreter steps aside for plain jax.vmap "
                       f"(the same values to float rounding; on the CPU some integrands run several times "
-                      f"slower): {reason}. {cpu_paths.ENV}=0 chooses vmap without this warning.",
+                      f"slower): {reason}. {cpu_paths.ENV}=0 (set before jaxsample is imported) chooses vmap "
+                      "without this warning.",
                       LanesUnavailableWarning, stacklevel=2)
     return False
 
