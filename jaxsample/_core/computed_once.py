@@ -17,6 +17,9 @@ but it defeats LLVM's vectorizer: the estimator of ∫cos³ runs 2x slower that 
 (`benchmarks/bench_estimator.py`). The cond's predicate is
 always true but is not a compile-time constant (it reads a traced `token`); were XLA ever to fold
 it, only the speed would be lost.
+
+Where. All of this is for XLA's CPU backend, where it was measured: elsewhere, or with the
+switch JAXSAMPLE_LANES=0 (`cpu_paths`), `computed_once` returns its values as they are.
 """
 
 from __future__ import annotations
@@ -24,6 +27,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 from jax import lax
+
+from . import cpu_paths
+from .jax_internals import identity_primitive
 
 __all__ = ["computed_once", "stored_once", "stored_once_p"]
 
@@ -49,6 +55,8 @@ def computed_once(values, token, *, alone: bool = False):
     so that no consumer can pull part of its computation into its own fusion (see `engine._chunk`).
     """
     values = list(values)
+    if not cpu_paths.active():
+        return values
     if len(values) == 1 and alone:
         return list(lax.cond(_always(token), lambda: tuple(values), lambda: tuple(jnp.zeros_like(v) for v in values)))
     if len(values) <= 1:
@@ -89,29 +97,15 @@ def computed_once(values, token, *, alone: bool = False):
 # warp. Outside `lane_map` (plain JAX, `vmap`, autodiff) the primitive is the identity; its
 # derivative passes the tangents through unchanged (the marker is not on the tangent path).
 
-from jax.extend.core import Primitive  # noqa: E402
-from jax.interpreters import ad, batching, mlir  # noqa: E402
-
-stored_once_p = Primitive("jaxsample_stored_once")
-stored_once_p.multiple_results = True
-stored_once_p.def_impl(lambda *xs: list(xs))
-stored_once_p.def_abstract_eval(lambda *avals: list(avals))
-mlir.register_lowering(stored_once_p, lambda ctx, *xs: list(xs))
-batching.primitive_batchers[stored_once_p] = lambda args, dims: (stored_once_p.bind(*args), list(dims))
-
-
-def _stored_once_jvp(primals, tangents):
-    tangents = [ad.instantiate_zeros(t) for t in tangents]
-    return stored_once_p.bind(*primals), tangents
-
-
-ad.primitive_jvps[stored_once_p] = _stored_once_jvp
+# None where this JAX cannot register a primitive (`jax_internals.MISSING`): `stored_once` is
+# then the identity function, and the lanes step aside.
+stored_once_p = identity_primitive("jaxsample_stored_once")
 
 
 def stored_once(tree):
     """`tree` unchanged; inside `lane_map`, its per-point arrays are stored once per block
     (see the note above). Leaves must be arrays."""
     leaves, treedef = jax.tree_util.tree_flatten(tree)
-    if not leaves:
+    if not leaves or stored_once_p is None:
         return tree
     return jax.tree_util.tree_unflatten(treedef, stored_once_p.bind(*[jnp.asarray(x) for x in leaves]))

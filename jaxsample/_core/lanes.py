@@ -31,10 +31,23 @@ an exception raised inside a rule is a bug and propagates. `lane_map(..., strict
 on the lanes. Calls of `jax.jit`-ed functions (`jnp.clip`, `jnp.where`, `jnp.linalg.norm`, ...)
 are inlined. Tuple inputs are coordinate columns of one dtype (the first column's).
 
-The tables below are keyed on primitive objects, looked up once at import: a primitive this JAX
-does not have is an ImportError naming it, not a silent slowdown. A few primitives are newer than
-the oldest supported JAX; each is required from the version that introduced it and skipped before
-(those versions express the same operation with primitives that have rules).
+The tables below are keyed on primitive objects, looked up once at import
+(`jax_internals.primitive`). A few primitives are newer than the oldest supported JAX; each is
+required from the version that introduced it and skipped before (those versions express the same
+operation with primitives that have rules).
+
+Where it runs. The interpreter is an optimization for XLA's CPU backend, where it was measured,
+and it can only fail soft: where it does not run, `lane_map(fn)` is `jax.vmap(fn)` on the points
+(the same values to float rounding, and the same derivatives), as it is on every other platform.
+It runs when (1) the program being traced targets the CPU (`cpu_paths.active`), (2) every
+primitive its tables name exists in the installed JAX and so do the JAX internals it reads
+(`jax_internals.MISSING`), and (3) that JAX is one it was tested with (`jax_internals.TESTED_JAX`).
+A failure of (2) or (3) is one `LanesUnavailableWarning` per process, when a program first would
+have used the interpreter, never an ImportError: a JAX release that renames a primitive costs
+speed, not the package. The environment variable JAXSAMPLE_LANES, read when jaxsample is
+imported, overrides: `JAXSAMPLE_LANES=0` turns the interpreter off (and `computed_once`'s
+packing with it: the CPU then runs the program the other platforms run), `JAXSAMPLE_LANES=1`
+runs it on every platform and on an untested JAX (`cpu_paths` has the details).
 
 `reduce_max`/`reduce_min` follow JAX's derivative at ties (the tangent is split evenly among the
 elements equal to the result), which a chain of pairwise `max` would not (it halves per step).
@@ -42,18 +55,19 @@ elements equal to the result), which a chain of pairwise `max` would not (it hal
 
 from __future__ import annotations
 
+import warnings
 from typing import Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
-from jax.extend import core as jex_core
-from jax.extend.core import primitives as jex_primitives
 
+from . import cpu_paths, jax_internals
 from .computed_once import computed_once, stored_once_p as _core_stored_once_p
+from .jax_internals import Literal, bind as _bind
 
-__all__ = ["lane_map", "LaneFallback", "MAX_LANES"]
+__all__ = ["lane_map", "LaneFallback", "LanesUnavailableWarning", "MAX_LANES"]
 
 # Per-point values with more elements than this stay stacked (count, *S) arrays: unrolling a
 # (1000,) per-point vector into 1000 lanes would trade a tight loop for a huge program.
@@ -63,49 +77,33 @@ _MAX_TERMS = 4 * MAX_LANES
 
 
 class LaneFallback(RuntimeError):
-    """Raised by `lane_map(..., strict=True)` where a primitive would be evaluated by vmap."""
+    """Raised by `lane_map(..., strict=True)` where a primitive would be evaluated by vmap, or
+    where the interpreter cannot run at all (a primitive missing from this JAX)."""
+
+
+class LanesUnavailableWarning(RuntimeWarning):
+    """The lane interpreter steps aside for `jax.vmap` on this JAX (see the module docstring)."""
 
 
 # -- the primitives, as objects --------------------------------------------------------------------
 
+# The primitive names the tables need that this JAX does not have: while any is missing, the
+# interpreter does not run (`_unavailable`).
+_MISSING: list[str] = []
+
+
 def _jax_version() -> tuple[int, ...]:
-    info = getattr(jax, "__version_info__", None)
-    if info is not None:
-        return tuple(int(v) for v in info[:3])
-    return tuple(int("".join(c for c in part if c.isdigit()) or 0) for part in jax.__version__.split(".")[:3])
-
-
-def _primitive_modules():
-    modules = [jex_primitives, lax]
-    try:  # primitives that jax.lax does not export (stack, unstack, tile, mulhi)
-        from jax._src.lax import lax as src_lax
-        modules.append(src_lax)
-    except ImportError:
-        pass
-    return modules
-
-
-_MODULES = _primitive_modules()
-
-
-def _find(name: str):
-    """The primitive object `<name>_p` of this JAX, or None."""
-    for module in _MODULES:
-        prim = getattr(module, name + "_p", None)
-        if isinstance(prim, jex_core.Primitive):
-            return prim
-    return None
+    return jax_internals.jax_version()
 
 
 def _keyed(entries: dict, since: tuple[int, ...] | None = None) -> dict:
     """{primitive object: value} for `entries` {primitive name: value}. A name this JAX has no
-    primitive for is an ImportError, except under `since` (the first JAX version that has them)
-    on an older JAX, where the missing ones are left out."""
-    found = {name: _find(name) for name in entries}
+    primitive for is recorded in `_MISSING` (which turns the interpreter off), except under `since`
+    (the first JAX version that has them) on an older JAX, where the missing ones are left out."""
+    found = {name: jax_internals.primitive(name) for name in entries}
     missing = [name for name, prim in found.items() if prim is None]
     if missing and (since is None or _jax_version() >= since):
-        raise ImportError(f"jaxsample._core.lanes: JAX {jax.__version__} has no primitive(s) {missing}; "
-                          "the lane interpreter's tables need updating for this JAX")
+        _MISSING.extend(name for name in missing if name not in _MISSING)
     return {prim: entries[name] for name, prim in found.items() if prim is not None}
 
 
@@ -150,16 +148,6 @@ class _Stacked:
 def _size(var) -> int:
     shape = getattr(var.aval, "shape", ())
     return int(np.prod(shape, dtype=np.int64))
-
-
-def _bind(prim, params, operands):
-    """prim.bind with the parameters as `jax.core.eval_jaxpr` passes them (call primitives turn
-    their jaxpr parameters into functions; older JAX returns those as a separate list)."""
-    bind_params = prim.get_bind_params(params)
-    if isinstance(bind_params, tuple):
-        subfuns, bind_params = bind_params
-        return prim.bind(*subfuns, *operands, **bind_params)
-    return prim.bind(*operands, **bind_params)
 
 
 def _object_array(items, shape) -> np.ndarray:
@@ -218,7 +206,7 @@ class _Evaluator:
         env = {}
 
         def read(v):
-            if isinstance(v, jex_core.Literal):
+            if isinstance(v, Literal):
                 return v.val
             return env[v]
 
@@ -537,7 +525,7 @@ def _stored_once(ev, eqn, inputs):
 
 
 _RULES = {
-    _core_stored_once_p: _stored_once,
+    **({} if _core_stored_once_p is None else {_core_stored_once_p: _stored_once}),
     **_keyed(dict.fromkeys(_ELEMENTWISE_NAMES, _elementwise)),
     **_keyed({"mulhi": _elementwise}, since=(0, 10, 2)),
     **_keyed({"broadcast_in_dim": _broadcast_in_dim, "reshape": _reshape, "squeeze": _squeeze,
@@ -548,6 +536,74 @@ _RULES = {
     **_keyed({"stack": _stack, "unstack": _unstack}, since=(0, 10, 1)),
     **{prim: _reduce for prim in _REDUCERS},
 }
+
+
+# ----------------------------------------------------------------------------------------------
+# Where the interpreter runs, and plain vmap where it does not
+# ----------------------------------------------------------------------------------------------
+
+_warned = False
+
+
+def _missing() -> str | None:
+    """What this JAX lacks of what the interpreter reads (None: nothing)."""
+    if not (_MISSING or jax_internals.MISSING):
+        return None
+    parts = ([f"no primitive(s) {_MISSING}"] if _MISSING else []) + list(jax_internals.MISSING)
+    return f"JAX {jax.__version__} has {'; '.join(parts)}"
+
+
+def _unavailable() -> str | None:
+    """Why the interpreter does not run on this JAX (None: it does)."""
+    reason = _missing()
+    if reason is None and not jax_internals.version_tested() and cpu_paths.setting() != "on":
+        low, high = (".".join(map(str, v)) for v in jax_internals.TESTED_JAX)
+        reason = (f"JAX {jax.__version__} is not a version it was tested with ({low} to {high}); "
+                  f"{cpu_paths.ENV}=1 runs it anyway")
+    return reason
+
+
+def _interpreting(strict: bool) -> bool:
+    """Whether `lane_map` evaluates the program being traced on the lanes. Where it cannot on this
+    JAX, the first program that would have is a `LanesUnavailableWarning` (once per process)."""
+    global _warned
+    if strict:  # a question about the interpreter itself: asked whatever the switch says
+        reason = _missing()
+        if reason is not None:
+            raise LaneFallback(f"lane_map(strict=True): the lane interpreter cannot run: {reason}")
+        return True
+    if not cpu_paths.active():
+        return False
+    reason = _unavailable()
+    if reason is None:
+        return True
+    if not _warned:
+        _warned = True
+        warnings.warn(f"jaxsample: the per-coordinate lane interpreter steps aside for plain jax.vmap "
+                      f"(the same values to float rounding; on the CPU some integrands run several times "
+                      f"slower): {reason}. {cpu_paths.ENV}=0 (set before jaxsample is imported) chooses vmap "
+                      "without this warning.",
+                      LanesUnavailableWarning, stacklevel=2)
+    return False
+
+
+def _by_vmap(fn: Callable, lane_shape: tuple[int, ...]) -> Callable:
+    """`lane_map`'s contract by `jax.vmap(fn)` over the points, flattened from `lane_shape`."""
+    points = int(np.prod(lane_shape, dtype=np.int64))
+
+    def mapped(*args):
+        flat = []
+        for a in args:
+            if isinstance(a, (tuple, list)):  # coordinate columns, of the first column's dtype
+                dtype = jnp.asarray(a[0]).dtype
+                a = jnp.stack([jnp.broadcast_to(jnp.asarray(c).astype(dtype), lane_shape) for c in a], axis=-1)
+            else:
+                a = jnp.asarray(a)
+            flat.append(a.reshape((points,) + a.shape[len(lane_shape):]))
+        out = jax.vmap(fn)(*flat)
+        return jax.tree_util.tree_map(lambda o: o.reshape(lane_shape + o.shape[1:]), out)
+
+    return mapped
 
 
 def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> Callable:
@@ -561,7 +617,11 @@ def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> C
 
     `strict=True` raises `LaneFallback` (naming the primitive and why) where a primitive would be
     evaluated by vmap instead of on the lanes; elementwise work on a value given or kept in the
-    stacked layout is not a fallback. For tests and for checking that an integrand stays fast.
+    stacked layout is not a fallback. For tests and for checking that an integrand stays fast:
+    it runs the interpreter wherever it can run, whatever JAXSAMPLE_LANES and the platform say.
+
+    Where the interpreter does not run (see the module docstring), the result is `jax.vmap(fn)`
+    on the points, and `token` is not used.
 
     `token`: a traced integer scalar for the values `stored_once` marks (`computed_once`'s token),
     e.g. the streaming engine's chunk offset. Without one, the token is read from the stored values,
@@ -570,8 +630,11 @@ def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> C
     20 loops that way).
     """
     lane_shape = (lane_shape,) if isinstance(lane_shape, (int, np.integer)) else tuple(lane_shape)
+    by_vmap = _by_vmap(fn, lane_shape)
 
     def mapped(*args):
+        if not _interpreting(strict):  # decided when the program is traced
+            return by_vmap(*args)
         ev = _Evaluator(lane_shape, strict, token)
         specs, inputs = [], []
         for a in args:

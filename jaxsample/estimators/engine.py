@@ -30,7 +30,8 @@ Speed: the per-sample work (warp, density, f) is evaluated on one array per coor
 (`jaxsample._core.lanes`), so XLA fuses it into one loop however f is written (`x @ a`, `jnp.sum(x * a)`,
 components); the g points a generator call yields (two 2-d points per Philox block) are computed
 in that loop and stored once per chunk (`jaxsample._core.computed_once`), so the generator runs once
-per block.
+per block. Both are for XLA's CPU backend, where they were measured; elsewhere, or with
+JAXSAMPLE_LANES=0, the per-sample work is `jax.vmap`-ed and nothing is packed (`jaxsample._core.cpu_paths`).
 
 Standard error: with independent points (the "random" source) it is sqrt(s²/n), s² the sample
 variance of Y. With R > 1 replicates (stratified, Sobol'), points within a replicate are
