@@ -138,6 +138,7 @@ INTEGRANDS = [
 # f(ω) = f_r(ω_o, ω) cos⁺θ L(ω), L = 1 on the quad. At α = 0.05 the lobe lies inside the light; at
 # α = 0.3 it is wider than the light, whose edges cut it.
 GGX_ALPHAS = (0.05, 0.3)
+GGX_ETA, GGX_K = 0.2, 3.0   # one channel: the study's integrands are scalar
 TRIANGLE_DISTANCES = {"near": 0.6, "far": 10.0}
 
 
@@ -147,7 +148,7 @@ def _ggx_geometry(alpha):
     light = scene.QuadLight(jnp.asarray(ip.QUAD_CORNER, jnp.float32), jnp.asarray(ip.QUAD_EDGE_U, jnp.float32),
                             jnp.asarray(ip.QUAD_EDGE_V, jnp.float32), 1.0)
     wo = jnp.asarray(ip.roughness_views()[0])
-    return ip.conductor(alpha), light, wo
+    return scene.RoughConductor(alpha, GGX_ETA, GGX_K), light, wo
 
 
 def _ggx_integrand(alpha):

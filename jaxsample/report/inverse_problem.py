@@ -26,9 +26,10 @@ Second experiment: ∂L_o/∂(light centre) for the true surface, by the default
 detached, against central finite differences of the same estimator with common random numbers
 (the same key, `jax.random.clone`) and of the quadrature reference.
 
-Third experiment, the roughness fit: a GGX rough conductor (`scene.RoughConductor`, gold-like
-η = 0.2 + 3i) lit by a rectangular light (`scene.QuadLight`, solid-angle sampling) seen from four
-views about the light's mirror direction; the observations are float64 quadratures at α = 0.2.
+Third experiment, the roughness fit, in colour: a GGX rough conductor (`scene.RoughConductor`, gold's
+RGB complex index) lit by a rectangular light (`scene.QuadLight`, solid-angle sampling) seen from four
+views about the light's mirror direction; the observations are float64 quadratures at α = 0.2, one
+radiance per channel, and the loss sums the squared error over views and channels.
 Gradient descent on log α starts from α = 0.05, where the highlight is a quarter as wide: Adam (its
 first moment decaying by 0.5, not 0.9: see ROUGHNESS_BETA1) on the unbiased surrogate above, each
 view's estimate and gradient from independent keys (`conductor_quad_program`). The attached MIS
@@ -187,7 +188,11 @@ ROUGHNESS_LEARNING_RATE = 0.1
 # Adam's first-moment decay for the one-parameter fit: 0.9 (the Phong fit's) overshoots α by 13 % and
 # takes 100 steps to come back; with 0.5 the iterates reach the truth within 1 % in 40 steps.
 ROUGHNESS_BETA1 = 0.5
-CONDUCTOR_ETA, CONDUCTOR_K = 0.2, 3.0
+# Gold's RGB complex index (`scene.CONDUCTOR_RGB`): the observations, the estimates and their gradients
+# have one value per channel, all channels from the same samples.
+CONDUCTOR_METAL = "gold"
+CONDUCTOR_ETA, CONDUCTOR_K = (np.asarray(v) for v in scene.CONDUCTOR_RGB[CONDUCTOR_METAL])
+CHANNELS = ("R", "G", "B")
 # A 1 x 0.8 rectangle 2 above the point, its centre 0.45 rad from the normal (toward -x), facing down.
 QUAD_CORNER = np.array([-1.47, -0.4, 2.0])
 QUAD_EDGE_U = np.array([0.0, 0.8, 0.0])
@@ -239,21 +244,24 @@ def conductor_quad_program(n, strategy="mis", mode="attached"):
     """jit: (configs, params, keys) -> (value, value stderr, gradient, gradient stderr) per configuration,
     a leading axis of K of each (`lax.map`, one compiled program for any K configurations of that shape).
 
-    The value is `shade`'s estimate of L_o; the gradient `shade_grad`'s in (log α, corner) (a 4-vector,
-    the silhouette's boundary term inside), from an independent key: so value and gradient are
-    independent, and 2 (value − L) · gradient is an unbiased gradient of (E value − L)²."""
+    The value is `shade`'s estimate of L_o, one per channel (shape (3,)); the gradient `shade_grad`'s in
+    (corner, log α) per channel (shape (3, 4), the silhouette's boundary term inside), from an
+    independent key: so value and gradient are independent, and 2 (value − L) · gradient is an
+    unbiased gradient of (E value − L)²."""
     cache_key = (n, strategy, mode)
     if cache_key not in _PROGRAMS:
         from jax.flatten_util import ravel_pytree
-        from ..scene.direct import _shade_grad
+
+        def flat(tree):  # per channel: {"corner": (3, 3), "log_alpha": (3,)} -> (3, 4)
+            return jax.vmap(lambda t: ravel_pytree(t)[0])(tree)
 
         def one(args):
             config, params, key = args
             key_value, key_gradient = jax.random.split(key)
             value = scene.shade(*conductor_quad_scene(config, params), key_value, n, strategy=strategy, mode=mode)
-            grad = _shade_grad(lambda q: conductor_quad_scene(config, q), params, key_gradient, n, strategy, mode,
-                               "power", "random", None, None, None)
-            return value.mean, value.stderr, ravel_pytree(grad.mean)[0], ravel_pytree(grad.stderr)[0]
+            grad = scene.shade_grad(lambda q: conductor_quad_scene(config, q), params, key_gradient, n,
+                                    strategy=strategy, mode=mode)
+            return value.mean, value.stderr, flat(grad.mean), flat(grad.stderr)
 
         _PROGRAMS[cache_key] = jax.jit(lambda configs, params, keys: jax.lax.map(one, (configs, params, keys)))
     return _PROGRAMS[cache_key]
@@ -289,7 +297,8 @@ def conductor_quad_inputs(cases=CONDUCTOR_QUAD_CASES):
 
 
 def conductor_quad_reference(case, step=1e-4, **quadrature):
-    """(L_o, ∂L_o/∂(corner, log α)) by float64 quadrature (`reference_radiance`) and central differences."""
+    """(L_o, ∂L_o/∂(corner, log α)) per channel, shapes (3,) and (3, 4), by float64 quadrature
+    (`reference_radiance`) and central differences."""
     point, normal, wo, alpha, corner, edge_u, edge_v, radiance = (np.asarray(v, float) for v in case)
 
     def value(corner, log_alpha):
@@ -300,7 +309,7 @@ def conductor_quad_reference(case, step=1e-4, **quadrature):
     grad = [(value(corner + step * e, np.log(alpha)) - value(corner - step * e, np.log(alpha))) / (2 * step)
             for e in np.eye(3)]
     grad.append((value(corner, np.log(alpha) + step) - value(corner, np.log(alpha) - step)) / (2 * step))
-    return base, np.asarray(grad)
+    return base, np.asarray(grad).T
 
 
 def conductor_quad_z_scores(n=4096, seed=24, cases=CONDUCTOR_QUAD_CASES, **quadrature):
@@ -340,9 +349,10 @@ def fit_roughness(iterations, n, key, mode="attached", strategy="mis", views=Non
         params = {"corner": corner, "log_alpha": jnp.full((count,), log_alpha, jnp.float32)}
         outputs = program(configs, params, jax.random.split(k, count))
         value, gradient = np.asarray(outputs[0], np.float64), np.asarray(outputs[2], np.float64)
-        residual = value - observed
-        # d/d log α of Σ (L̂ − L)², unbiased: the residual and the gradient come from independent keys.
-        grad = float(np.sum(2.0 * residual * gradient[:, CONDUCTOR_QUAD_PARAMETERS.index("log_alpha")]))
+        residual = value - observed                                  # (views, channels)
+        # d/d log α of Σ (L̂ − L)² over views and channels, unbiased: the residual and the gradient
+        # come from independent keys.
+        grad = float(np.sum(2.0 * residual * gradient[..., CONDUCTOR_QUAD_PARAMETERS.index("log_alpha")]))
         history["loss"].append(float(np.sum(residual * residual)))
         m = beta1 * m + (1.0 - beta1) * grad
         v = 0.999 * v + 0.001 * grad * grad
@@ -480,17 +490,18 @@ def markdown_summary(result) -> str:
                      + "   z: " + ", ".join(f"{z:+.1f}" for z in row["z"]))
     r = result.get("roughness_fit")
     if r:
-        lines.append(f"roughness fit (GGX conductor under a quad light, {r['strategy']}, {r['mode']}): α {r['alpha']:.4f} "
+        lines.append(f"roughness fit (GGX gold conductor, RGB, under a quad light, {r['strategy']}, {r['mode']}): α {r['alpha']:.4f} "
                      f"(truth {TRUE_ROUGHNESS:g}, start {START_ROUGHNESS:g}, rel. error {r['alpha_rel_error']:.2%}), "
                      f"loss {r['initial_loss']:.3e} -> {r['final_loss']:.3e} in {r['iterations']} iterations of "
                      f"{r['samples_per_estimate']} evaluations per view")
     z = result.get("conductor_quad_z")
     if z:
-        lines.append("GGX conductor under a quad light, shade's default strategy (mis, attached) against central "
-                     "differences of the float64 reference, z = (estimate − reference)/stderr per configuration:")
+        lines.append("GGX gold conductor (RGB) under a quad light, shade's default strategy (mis, attached) against central "
+                     "differences of the float64 reference, z = (estimate − reference)/stderr per configuration and channel:")
         lines.append(f"  {'configuration':>13}  {'value':>6}  " + "  ".join(f"{name:>9}" for name in CONDUCTOR_QUAD_PARAMETERS))
         for i, (zv, zg) in enumerate(zip(z["z_value"], z["z_gradient"])):
-            lines.append(f"  {i:>13}  {zv:+6.2f}  " + "  ".join(f"{v:+9.2f}" for v in zg))
+            for channel, v, g in zip(CHANNELS, zv, zg):
+                lines.append(f"  {f'{i} {channel}':>13}  {v:+6.2f}  " + "  ".join(f"{x:+9.2f}" for x in g))
     lines.append(f"plot: {result['plot'] or result.get('plot_skipped', 'not written (no --out)')}")
     lines.append(f"{result['seconds']:.1f} s")
     return "\n".join(lines)
