@@ -1,4 +1,4 @@
-"""The boundary-term checks of issue 23, printed with their numbers: `python benchmarks/boundary_terms.py`.
+"""The boundary-term checks of the test suite, printed with their numbers: `python benchmarks/boundary_terms.py`.
 
 Each line: the gradient, its standard error, the reference (exact, or central differences of a
 float64 quadrature written in `tests/estimators/test_boundary.py`), and z. Checkout only: it reuses

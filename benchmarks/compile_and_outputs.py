@@ -1,4 +1,4 @@
-"""Compile time and run time of `estimate` against the same program written by hand (issue 25, target 4).
+"""Compile time and run time of `estimate` against the same program written by hand.
 
     python benchmarks/compile_and_outputs.py [--log2n 20] [--repeats 3] [--only NAME,...]
 

@@ -1,6 +1,6 @@
 """The diagnostics every estimate carries, measured: `python benchmarks/diagnostics.py [--quick]`.
 
-1. The programs that returned confident wrong numbers, after the change: estimate, flags.
+1. Programs whose estimate is confidently wrong: the estimate, the truth, and whether it is flagged.
 2. False alarms on honest estimates: 64 oriented lobes over keys, and every sampler of the
    report's table over keys.
 3. Coverage of 95 % intervals from R replicates (Sobol', stratified): Student's t against the

@@ -1,4 +1,4 @@
-"""The generator's cost per sample inside the estimator (issue 25, target 3), alternatives side by side.
+"""The generator's cost per sample inside the estimator, alternatives side by side.
 
     python benchmarks/generators.py [--log2n 24] [--repeats 7] [--rounds 2]
 

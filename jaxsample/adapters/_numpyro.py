@@ -148,8 +148,8 @@ class SphereReparam(Reparam):
 
     The radial law (`radius_scale`): |z| = exp(s ε), ε ~ N(0, 1), s = `radius_scale` (default
     0.05), so |z| stays within about exp(±4s) of 1 (0.82 to 1.22 at the default); its density over
-    R³ is f(|z|) / (4π |z|²), f the log-normal density. Why not z ~ N(0, I) (`radius_scale=None`,
-    the law before): the radius then follows the chi(3) law (5% to 95% between 0.6 and 2.8, and
+    R³ is f(|z|) / (4π |z|²), f the log-normal density. Why not z ~ N(0, I) (`radius_scale=None`):
+    the radius then follows the chi(3) law (5% to 95% between 0.6 and 2.8, and
     down towards 0), and a direction whose posterior has angular width σ is |z| σ wide across the
     radius in z-space. A concentrated direction (σ = 1/√(κN) ≈ 0.026 rad for N = 100 draws of a
     vMF with κ = 15) is then a funnel: its width changes about fivefold between the radius's 5% and

@@ -108,8 +108,9 @@ class LatinHypercube(Source):
     def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         m = self._per_replicate(total)
         layout = Layout(offset, count, self.replicates, aligned)
-        # (dims, R): each coordinate's words one contiguous row (read as columns of (R, dims), 3-d
-        # and 4-d ran at 2.0-2.1x Random, 2-d at 0.96x: quasi_random, n = 2^22).
+        # (dims, R): each coordinate's words one contiguous row (read as columns of (R, dims), the
+        # 3-d and 4-d programs vectorize worse and run about twice as slow as Random:
+        # benchmarks/results/point-sets-paths-cpu-2core-2026-12-05.md).
         words = [replicate_words(seed, self.replicates, dims, STREAM_LHS, w, by_column=True) for w in range(2)]
         top = np.nextafter(np.array(1.0, dtype), np.array(0.0, dtype))
         p = layout.full(layout.point.lo)
