@@ -1,5 +1,5 @@
 """A property-based differential test of the lane interpreter (`jaxsample._core.lanes`) against
-`jax.vmap` (issue 30).
+`jax.vmap`.
 
 Hypothesis writes per-point programs from a grammar of the operations integrands are written
 with: dot products, `einsum` with batch and free indices (both operands per-point, or one shared),

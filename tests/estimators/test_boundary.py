@@ -1,4 +1,4 @@
-"""Boundary terms (issue 23): gradients of integrals whose parameters move an edge of the integrand.
+"""Boundary terms: gradients of integrals whose parameters move an edge of the integrand.
 
 References are exact (solid angles, their derivatives) or finite differences of float64 quadrature
 written here independently of the library's boundary sampling. Every test uses fixed keys; where

@@ -1,4 +1,4 @@
-"""Gradients with error bars (issue 15, part 1): `estimate_grad` and `expectation_grad`.
+"""Gradients with error bars: `estimate_grad` and `expectation_grad`.
 
 References (docs/reference.md): for d/dn E_{p_n}[cos^k θ] = k/(n+k+1)² under the Phong lobe, the
 per-sample variances at n = 5, k = 2 are 3.5677e-4 (pathwise) and 7.6901e-3 (score). The

@@ -261,7 +261,7 @@ def transformed_spherical(low, high):
     return js.Transformed(js.UniformBox(low, high), _sphere_forward, _sphere_inverse, domain=Directions())
 
 
-# Henyey–Greenstein, Gaussians, tent, linear, bilinear (jaxsample issue 24, part 3).
+# Henyey–Greenstein, Gaussians, tent, linear, bilinear.
 
 def henyey_greenstein(g):
     return js.HenyeyGreenstein(g)
@@ -287,7 +287,7 @@ def bilinear(w):
     return js.Bilinear(w)
 
 
-# Microfacet distributions (GGX, Beckmann) and their lobes (jaxsample issue 24, part 1).
+# Microfacet distributions (GGX, Beckmann) and their lobes.
 
 def ggx(alpha_x, alpha_y):
     return js.GGX(alpha_x, alpha_y)
@@ -367,7 +367,7 @@ _MICROFACET_LOBE_CASES = (
     _C((0.3, 0.3, MICROFACET_OBLIQUE), chi2=False), _C((1e-2, 1e-2, (0.0, 0.0, 1.0)), chi2=False),
     _C((0.3, 0.3, MICROFACET_BELOW), chi2=False))
 
-# Solid-angle sampling of spherical triangles and rectangles (jaxsample issue 24, part 2): from a
+# Solid-angle sampling of spherical triangles and rectangles: from a
 # near-hemisphere (the viewer 0.05 from the plane, inside) down to 1e-8 sr, where float32 Arvo and
 # Ureña formulas fail (benchmarks/float32_spherical.py).
 
@@ -519,7 +519,7 @@ ENTRIES = [
           DIRECTION_POINTS, positive_at_edges=False, gradients64=False),
     # (Its gradients are those of the other two mixtures' code with the disks' warps.)
     Entry("Mixture-disks", mixture_of_disks, (_C(([1.0, 0.0],), chi2=False, gradients=False),), DISK_POINTS),
-    # ---- Henyey–Greenstein, Gaussians, tent, linear, bilinear (jaxsample issue 24, part 3) ----
+    # ---- Henyey–Greenstein, Gaussians, tent, linear, bilinear ----
     # g at its float32 hard cases; chi-square at a sharp forward lobe and the sharpest backward
     # one (the warp's factors are formed differently for g < 0).
     Entry("HenyeyGreenstein", henyey_greenstein,
@@ -547,7 +547,7 @@ ENTRIES = [
                                  _C(((0.0, 1.0, 1.0, 0.0),), chi2=False), _C(((1e6, 1.0, 0.0, 1e-6),), chi2=False)),
           np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
           inverse=_PLANAR_INVERSE, pdf_rtol=1e-4, positive_at_edges=False),  # a zero corner weight: p = 0 there
-    # ---- microfacet distributions and their lobes (jaxsample issue 24, part 1) ----
+    # ---- microfacet distributions and their lobes ----
     # Roughness 1e-4..1 and anisotropy 1e3 (alpha_x = 1, alpha_y = 1e-3); wo at cos θ_o = 1e-7, 45°-ish,
     # along the normal and below the horizon. Chi-square at the smoothest, the roughest and the
     # anisotropic lobe; the rest are checked for normalization, inverse, support and gradients.
@@ -579,7 +579,7 @@ ENTRIES = [
            _C((1.0, 1.0, MICROFACET_GRAZING), chi2=False)),
           DIRECTION_POINTS, 400_000, 128, 65_536, _MICROFACET_REFLECTION_INVERSE, positive_at_edges=False,
           gradients64=False),
-    # ---- spherical triangles and rectangles (jaxsample issue 24, part 2) ----
+    # ---- spherical triangles and rectangles ----
     # Chi-square at a near-hemisphere, a medium and a 1e-4 sr shape; 1e-8 sr for the support and the
     # gradients (its round trip, against the rounding of the sample, is in test_spherical_polygons.py).
     Entry("SphericalTriangle", spherical_triangle,

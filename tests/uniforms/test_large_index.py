@@ -1,4 +1,4 @@
-"""Sample counts and 64-bit sample indices (issue 14, item 5).
+"""Sample counts and 64-bit sample indices.
 
 `n` is any concrete integer; a traced n is a TypeError that says how to make it static; the
 replicated sources say how to change their replicate count. Sample indices have 64 bits: the point

@@ -18,7 +18,7 @@ from keyring import next_key
 jax.config.update("jax_debug_key_reuse", True)
 
 
-# Unscrambled Sobol' points (32-bit fractions, natural order) in dimensions past the old 128,
+# Unscrambled Sobol' points (32-bit fractions, natural order) in dimensions past 128,
 # computed once with SciPy 1.17.1: scipy.stats.qmc.Sobol(d=1024, scramble=False, bits=32)
 # .random(2**20) * 2**32, whose rows are in Gray-code order (row n is natural point n ^ (n >> 1)),
 # remapped to natural order.
@@ -175,7 +175,7 @@ def test_points_are_uniform_and_independent_across_dimensions_and_replicates(nam
         assert abs(np.corrcoef(points[:, 0, a], points[:, 1, a])[0, 1]) < limit, a
         assert abs(np.corrcoef(points[:, 2, a], points[:, 3, a])[0, 1]) < limit, a
     # The check can fail: u^1.5 has density (2/3) u^(-1/3), a noncentrality of ~2000 at these
-    # 8192 keys (u^1.1, ~80, was rejected only ~70% of the time: a flaky canary, not a bug).
+    # 8192 keys (u^1.1, ~80, is rejected only ~70% of the time: too weak a canary to be stable).
     assert not chi2_ok(points[:, 0, 0] ** 1.5)
 
 
