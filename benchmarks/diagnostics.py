@@ -101,7 +101,8 @@ def coverage(keys):
         for r in (8, 16):
             for per in (64, 1024):
                 est = jax.jit(jax.vmap(lambda k: js.estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), k, r * per,
-                                                             uniforms=source_of(r))))(jax.random.split(jax.random.key(r + per), keys))
+                                                             uniforms=source_of(r))))(
+                    jax.random.split(jax.random.key(r + per), keys))
                 lo, hi = est.interval(0.95)
                 t = float(jnp.mean((lo <= np.pi / 2) & (np.pi / 2 <= hi)))
                 normal = float(jnp.mean(jnp.abs(est.mean - np.pi / 2) <= 1.959964 * est.stderr))

@@ -59,7 +59,8 @@ def candidate_words(name):
         def words(seed, block_index, stream, word_block=0):
             b = _block(block_index)
             high = jnp.zeros_like(b.lo) if b.hi is None else b.hi
-            counter = (b.lo, jnp.zeros_like(b.lo) + philox._u32(word_block), jnp.zeros_like(b.lo) + philox._u32(stream), high)
+            counter = (b.lo, jnp.zeros_like(b.lo) + philox._u32(word_block),
+                       jnp.zeros_like(b.lo) + philox._u32(stream), high)
             return philox.philox4x32(counter, (seed[..., 0], seed[..., 1]), rounds=rounds)
         return words
 

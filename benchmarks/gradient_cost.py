@@ -1,4 +1,5 @@
-"""What a gradient of `shade` costs next to its value: `python benchmarks/gradient_cost.py [--quick] [--n N] [--out FILE]`.
+"""What a gradient of `shade` costs next to its value:
+`python benchmarks/gradient_cost.py [--quick] [--n N] [--out FILE]`.
 
 For every BRDF x light x strategy x mode, in one process: the run time per radiance evaluation of
 the value (`shade(...).mean` under `jax.jit`), of `jax.grad` of it and of `shade_grad` (the gradient

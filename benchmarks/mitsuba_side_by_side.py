@@ -16,7 +16,8 @@ called `--repeats` times in a seeded random order (`interleaved_medians`) after 
 (which compiles), and the table gives every process's median and the median of the paired ratios.
 
 Mitsuba is not a dependency: `pip install mitsuba` into the same environment (the results file
-`benchmarks/results/generators-and-mitsuba-cpu-2core-2026-12-04.md` names the versions it measured). Dr.Jit loads libLLVM at run time. This machine's own /lib/x86_64-linux-gnu/libLLVM-15
+`benchmarks/results/generators-and-mitsuba-cpu-2core-2026-12-04.md` names the versions it measured).
+Dr.Jit loads libLLVM at run time. This machine's own /lib/x86_64-linux-gnu/libLLVM-15
 loads but cannot compile Mitsuba's warps ("LLVM ERROR: Cannot select ... fmaximum": Dr.Jit emits
 llvm.maximum, which LLVM 15's x86 backend does not lower), so it runs with Debian's LLVM 19 beside
 it, as for the figures in benchmarks/results/:
@@ -79,7 +80,8 @@ def mitsuba_programs(n):
             return float(mean[0] if hasattr(mean, "__len__") else mean)
         return run
 
-    return {"mitsuba cos3": program("cos3"), "mitsuba tilted": program("tilted")}, f"Mitsuba {mi.__version__}, Dr.Jit {dr.__version__}"
+    versions = f"Mitsuba {mi.__version__}, Dr.Jit {dr.__version__}"
+    return {"mitsuba cos3": program("cos3"), "mitsuba tilted": program("tilted")}, versions
 
 
 def _measure(system, n, repeats):
@@ -129,7 +131,8 @@ def main(argv=None):
     lines = [f"n = 2^{args.log2n}; per system the median of {args.repeats} calls in each of {args.alternations} "
              f"alternating processes; {platform.machine()}, {os.cpu_count()} cores; XLA_FLAGS={flags!r}; "
              + ", ".join(versions.values()) + ("" if runs["mitsuba"] else "; Mitsuba not installed"), "",
-             "| program | jaxsample M samples/s | Mitsuba 3 M samples/s | jaxsample / Mitsuba (median of the alternations) |",
+             "| program | jaxsample M samples/s | Mitsuba 3 M samples/s "
+             "| jaxsample / Mitsuba (median of the alternations) |",
              "|---|---|---|---|"]
     for name in ("cos3", "tilted"):
         ours = [n / t[name] / 1e6 for t in runs["jaxsample"]]

@@ -35,7 +35,8 @@ def python_blocks(text: str) -> list[str]:
 BLOCKS = python_blocks(README.read_text())
 # (name, blocks run in order in one namespace)
 UNITS = ([(f"README block {i}", [block]) for i, block in enumerate(BLOCKS)]
-         + [(f"docs/site/{page}", [b for b in python_blocks((SITE / page).read_text()) if not b.startswith("# not run")])
+         + [(f"docs/site/{page}",
+             [b for b in python_blocks((SITE / page).read_text()) if not b.startswith("# not run")])
             for page in PAGES]
          + [(f"docs/site/{script}", [(SITE / script).read_text()]) for script in SHOWN])
 

@@ -154,7 +154,8 @@ class SphereReparam(Reparam):
     radius in z-space. A concentrated direction (σ = 1/√(κN) ≈ 0.026 rad for N = 100 draws of a
     vMF with κ = 15) is then a funnel: its width changes about fivefold between the radius's 5% and
     95% points, a step size that suits |z| ≈ 1.5 diverges near |z| ≈ 0.6 (where the worst
-    key's divergent draws lay: 17 of 20 at |z| < 0.8), and the narrow direction, oblique to the coordinate axes, is what a diagonal
+    key's divergent draws lay: 17 of 20 at |z| < 0.8), and the narrow direction, oblique to the
+    coordinate axes, is what a diagonal
     mass matrix cannot undo. Measured on that model (mean direction and κ unknown, 500 warm-up
     steps and 500 draws, one chain, keys 0 to 9): N(0, I) diverged on every key (1 to 20 times),
     κ's effective sample size 48 to 199, about 32 leapfrog steps a draw; the default shell had no

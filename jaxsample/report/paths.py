@@ -15,7 +15,6 @@ and the warps below).
 from __future__ import annotations
 
 import argparse
-import itertools
 
 import jax
 import jax.numpy as jnp
@@ -246,7 +245,6 @@ def shading(n, repeats):
     its gradient with respect to the Phong exponent against its value."""
     point, normal = jnp.zeros(3), jnp.array([0.0, 0.0, 1.0])
     wo = jnp.array([0.3, 0.0, 0.954])
-    brdf = scene.Phong(50.0, 0.9)
     lights = [scene.SphereLight(jnp.array([-0.9, 0.0, 3.0]), 0.3, 10.0), scene.ConstantSky(0.2)]
 
     def radiance(exponent, k, s):
@@ -299,8 +297,8 @@ def path_table(quick: bool = True, tiny: bool = False, progress=print) -> list[d
                 ("sample into arrays", lambda: sample_into_arrays(n_arr, repeats)),
                 ("point sets", lambda: quasi_random(n_est, repeats)),
                 ("Oriented and Mixture", lambda: composition(n_est, repeats)),
-                ("every sampler", lambda: every_sampler(n_est, repeats,
-                                                        names=("PhongLobe(20)", "UniformDisk(concentric)") if tiny else None)),
+                ("every sampler", lambda: every_sampler(
+                    n_est, repeats, names=("PhongLobe(20)", "UniformDisk(concentric)") if tiny else None)),
                 ("Sobol' for every sampler", lambda: sobol_every_sampler(n_est, repeats)),
                 ("scene.shade", lambda: shading(n_est, repeats)),
                 ("∫cos³ and its gradient", lambda: benchmarked_case(n_est, repeats))]

@@ -8,8 +8,6 @@ dozens of loops), loop invariants hoisted out of the loop into arrays, a boundar
 with the value, or a per-point program that leaves the lanes. All deterministic (no false failures).
 """
 
-import re
-
 import jax
 import jax.numpy as jnp
 import numpy as np

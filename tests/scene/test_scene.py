@@ -369,7 +369,8 @@ def test_light_position_gradient_matches_finite_differences_and_the_closed_form(
     # failure 6e-7 per component), from `shade_grad` on the same samples.
     held = scene.shade_grad(lambda c: (POINT, NORMAL, WO, brdf, scene.SphereLight(c, radius, radiance)), center,
                             jax.random.key(14), 1 << 14, strategy="light", mode="detached")
-    assert np.all(np.abs(np.asarray(held.mean) - exact) < 5.0 * np.asarray(held.stderr)), (held.mean, held.stderr, exact)
+    assert np.all(np.abs(np.asarray(held.mean) - exact) < 5.0 * np.asarray(held.stderr)), \
+        (held.mean, held.stderr, exact)
     assert np.all(np.asarray(held.stderr) < 0.05 * scale)
 
 

@@ -5,7 +5,8 @@ Each configuration's gradient comes from `shade_grad` (per-evaluation gradients,
 boundary term inside each, 4096 evaluations, a fixed key); z = (gradient - reference) / stderr per
 parameter. Thresholds: the mean of z² over a light's 12 x (7 or 12) parameters below 2.5, and
 every |z| below 5.5 (attached: all three strategies, both lights; detached: the default
-"mis" on the sphere light, whose boundary term is the plain Δf v·n). With independent normal z the first is the χ² statistic divided by its dof,
+"mis" on the sphere light, whose boundary term is the plain Δf v·n). With independent normal z the
+first is the χ² statistic divided by its dof,
 and 2.5 is more than 9 of its standard deviations above 1; the parameters are correlated (albedo
 and radiance enter as a product), which widens its spread, at most by the factor of the two
 duplicated columns, keeping the threshold above 6 sd (false failure below 1e-8 for a normal

@@ -226,7 +226,7 @@ def test_owen_halton_permutes_each_digit_by_its_prefix_and_permutation_halton_do
     for a correct Owen scramble with probability 36^-4 < 1e-6 over the 4 keys (requiring it for
     every key would fail with probability 1 - (35/36)^4 ~ 0.11)."""
     index = np.arange(9)
-    d0, d1 = index % 3, index // 3
+    d1 = index // 3
     nested = []
     for _ in range(4):
         for scramble in ("permutation", "owen"):
@@ -431,7 +431,8 @@ def test_estimators_stream_the_source_under_jit_and_vmap(name):
     FFR 4.6e-4 for the 4 cases (4 keys each): |t_31| > 5 has probability 2.1e-5 for normal
     replicate means; these point sets' replicate means are far from normal (Halton's nearly
     uniform), and t statistics of 32 drawn from 2^16 simulated replicate means of each set (2e7
-    per set; their tails at 3 and 4 matched 16384 keys of this estimator) exceeded 5 for 1.3e-5 (lattice), 5.1e-5 (halton), 3.0e-5 (halton-owen) and 2.0e-5
+    per set; their tails at 3 and 4 matched 16384 keys of this estimator) exceeded 5 for 1.3e-5
+    (lattice), 5.1e-5 (halton), 3.0e-5 (halton-owen) and 2.0e-5
     (lhs) of them. With R = 8 the same simulation gives 5.5e-3, 4.2e-3, 2.9e-3 and 1.5e-3, as
     8000 keys of the estimator did (6e-3, 4.6e-3, 3.1e-3, 4e-4)."""
     source = SOURCES[name](32)

@@ -81,7 +81,8 @@ def test_every_joe_kuo_dimension_is_a_net_with_the_sobol_t_bound():
     assert one_d_nets(points, 12)
     degree = np.array([1] + [s for s, _, _ in S._joe_kuo_lines()])
     j = np.arange(1023)
-    pairs = np.concatenate([np.stack([j, j + 1], 1), np.stack([0 * j, j + 1], 1), np.stack([0 * j[1:] + 1, j[1:] + 1], 1),
+    pairs = np.concatenate([np.stack([j, j + 1], 1), np.stack([0 * j, j + 1], 1),
+                            np.stack([0 * j[1:] + 1, j[1:] + 1], 1),
                             np.random.default_rng(7).integers(0, 1024, (2000, 2))])
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]
     t = t_values(points, pairs, 8)
