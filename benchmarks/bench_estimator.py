@@ -29,7 +29,7 @@ import jaxsample as js
 from jaxsample import uniforms as U
 from jaxsample.estimators import estimate, run_stream
 
-from jaxsample.report.numpy_baseline import AXIS, cos3, everything, median_time, numpy_estimate, tilted, uniform_floor
+from jaxsample.report.numpy_baseline import cos3, everything, median_time, numpy_estimate, tilted, uniform_floor
 from jaxsample.report.timing import interleaved_medians
 
 N = 1 << 24

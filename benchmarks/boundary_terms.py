@@ -1,4 +1,4 @@
-"""The boundary-term checks of issue 23, printed with their numbers: `python benchmarks/boundary_terms.py`.
+"""The boundary-term checks of the test suite, printed with their numbers: `python benchmarks/boundary_terms.py`.
 
 Each line: the gradient, its standard error, the reference (exact, or central differences of a
 float64 quadrature written in `tests/estimators/test_boundary.py`), and z. Checkout only: it reuses
@@ -34,7 +34,8 @@ def line(name, mean, stderr, reference):
 
 def main():
     g = t._cap_grad(js.UniformSphere(), lambda w: 1.0, jax.random.key(0), 1 << 12)
-    line("cap, g = 1, uniform sphere, d/dalpha (2 pi sin a)", g.mean["alpha"], g.stderr["alpha"], t.TWO_PI * np.sin(0.7))
+    line("cap, g = 1, uniform sphere, d/dalpha (2 pi sin a)", g.mean["alpha"], g.stderr["alpha"],
+         t.TWO_PI * np.sin(0.7))
     line("cap, g = 1, uniform sphere, d/dbeta (0)", g.mean["beta"], g.stderr["beta"], 0.0)
     alpha, beta = 0.7, 1.2
     g = t._cap_grad(js.CosineHemisphere(), lambda w: 1.0, jax.random.key(1), 1 << 16, alpha, beta)
@@ -44,8 +45,9 @@ def main():
     line("cap cut by the horizon, cosine, d/dalpha (exact)", g.mean["alpha"], g.stderr["alpha"], exact)
     line("cap cut by the horizon, cosine, d/dbeta (quadrature FD)", g.mean["beta"], g.stderr["beta"], fd)
     smooth = lambda w: 1.0 + w[..., 0] ** 2 + w[..., 2]
-    for label, sampler, alpha, beta, hemisphere in (("uniform", js.UniformSphere(), 0.5, 0.6, False),
-                                                     ("cosine, cut by the horizon", js.CosineHemisphere(), 0.5, 1.3, True)):
+    cases = (("uniform", js.UniformSphere(), 0.5, 0.6, False),
+             ("cosine, cut by the horizon", js.CosineHemisphere(), 0.5, 1.3, True))
+    for label, sampler, alpha, beta, hemisphere in cases:
         quadrature = lambda a, b: t._cap_quadrature(a, b, smooth, hemisphere=hemisphere, nodes=64)
         references = {"alpha": t._central(lambda a: quadrature(a, beta), alpha),
                       "beta": t._central(lambda b: quadrature(alpha, b), beta)}
@@ -56,10 +58,12 @@ def main():
             cover = float(jnp.mean((mean - 1.96 * err <= reference) & (reference <= mean + 1.96 * err)))
             pooled = float(jnp.mean(mean)), float(jnp.std(mean) / np.sqrt(mean.size))
             line(f"cap, smooth g, {label}, d/d{name}, 2000 keys pooled", pooled[0], pooled[1], reference)
-            print(f"{'':<58} one key's stderr {float(jnp.mean(err)):.2e}; 95 % intervals cover {cover:.2%} of 2000 keys")
+            print(f"{'':<58} one key's stderr {float(jnp.mean(err)):.2e}; "
+                  f"95 % intervals cover {cover:.2%} of 2000 keys")
     a0, b0, c0 = np.array([0.2, 0.1, 1.0]), np.array([1.0, 0.2, 0.6]), np.array([0.3, 1.0, 0.5])
-    g = js.estimate_grad(lambda a: (edges.masked(edges.SphericalTriangle(a, b0, c0), lambda w: 1.0), js.UniformSphere()),
-                         jnp.asarray(a0, jnp.float32), jax.random.key(3), 1 << 16)
+    g = js.estimate_grad(
+        lambda a: (edges.masked(edges.SphericalTriangle(a, b0, c0), lambda w: 1.0), js.UniformSphere()),
+        jnp.asarray(a0, jnp.float32), jax.random.key(3), 1 << 16)
     reference = [t._central(lambda s: t._solid_angle(a0 + s * e, b0, c0), 0.0) for e in np.eye(3)]
     line("spherical triangle, d solid angle / d vertex a", g.mean, g.stderr, reference)
     box = js.UniformBox(jnp.array([-1.0, -1.0]), jnp.array([1.5, 1.0]))

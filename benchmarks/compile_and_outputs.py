@@ -1,4 +1,4 @@
-"""Compile time and run time of `estimate` against the same program written by hand (issue 25, target 4).
+"""Compile time and run time of `estimate` against the same program written by hand.
 
     python benchmarks/compile_and_outputs.py [--log2n 20] [--repeats 3] [--only NAME,...]
 
@@ -12,7 +12,8 @@ hemisphere), and projections of an environment onto real spherical harmonics of 
 L = 2, 3, 4, 7 (4, 9, 16, 49 coefficients per direction; the SH by the standard recurrences, as
 polynomials in x, y, z), over the uniform sphere; and `scene.shade` (default MIS, Phong 50 with a sphere
 light and a sky, the parameter scaling the exponent) against the same MIS estimate by hand from the scene
-objects' methods (`shade_hand`; its gradient lacks shade's silhouette boundary term). Compile = `jit(...).lower(...).compile()`
+objects' methods (`shade_hand`; its gradient lacks shade's silhouette boundary term). Compile =
+`jit(...).lower(...).compile()`
 wall time, median of `repeats` fresh compiles (a new closure each time, so nothing is cached);
 run = median ns/sample of `repeats` runs after one warm-up, of the program and of its `jax.grad`
 (the by-hand gradient keeps its residuals, memory growing with n; jaxsample's recomputes each
@@ -188,7 +189,8 @@ def main():
     args = parser.parse_args()
     n = 1 << args.log2n
     print(f"n = 2^{args.log2n}, medians of {args.repeats}; {jax.devices()[0].platform}, jax {jax.__version__}\n")
-    print("| program | compile: jaxsample / by hand | grad compile: jaxsample / by hand | run ns/sample: jaxsample / by hand "
+    print("| program | compile: jaxsample / by hand | grad compile: jaxsample / by hand "
+          "| run ns/sample: jaxsample / by hand "
           "| run speed, by hand ÷ jaxsample | grad run ns/sample: jaxsample / by hand | grad run speed |")
     print("|---|---|---|---|---|---|---|")
     programs = {name: (lambda f=f, sampler=sampler: library_program(f, sampler, n),

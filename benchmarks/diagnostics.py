@@ -1,6 +1,6 @@
 """The diagnostics every estimate carries, measured: `python benchmarks/diagnostics.py [--quick]`.
 
-1. The programs that returned confident wrong numbers, after the change: estimate, flags.
+1. Programs whose estimate is confidently wrong: the estimate, the truth, and whether it is flagged.
 2. False alarms on honest estimates: 64 oriented lobes over keys, and every sampler of the
    report's table over keys.
 3. Coverage of 95 % intervals from R replicates (Sobol', stratified): Student's t against the
@@ -101,7 +101,8 @@ def coverage(keys):
         for r in (8, 16):
             for per in (64, 1024):
                 est = jax.jit(jax.vmap(lambda k: js.estimate(lambda w: w[2] ** 3, js.CosineHemisphere(), k, r * per,
-                                                             uniforms=source_of(r))))(jax.random.split(jax.random.key(r + per), keys))
+                                                             uniforms=source_of(r))))(
+                    jax.random.split(jax.random.key(r + per), keys))
                 lo, hi = est.interval(0.95)
                 t = float(jnp.mean((lo <= np.pi / 2) & (np.pi / 2 <= hi)))
                 normal = float(jnp.mean(jnp.abs(est.mean - np.pi / 2) <= 1.959964 * est.stderr))

@@ -232,7 +232,8 @@ def _at_zero(failures) -> str:
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--log2-points", type=int, default=23, help="2^n of the source's 2^23 float32 points (default all)")
+    parser.add_argument("--log2-points", type=int, default=23,
+                        help="2^n of the source's 2^23 float32 points (default all)")
     args = parser.parse_args(argv)
     start = time.time()
     u = source_points(args.log2_points)
@@ -244,7 +245,8 @@ def main(argv=None):
     print("| g | routine | " + " | ".join(columns) + " | max quantile error | u = 0 |")
     print("|---|---|" + "---|" * (len(columns) + 2))
     routines = {"jaxsample": jaxsample_hg, "PBRT-v4 (g clamped to ±0.99)": pbrt_hg,
-                "PBRT-v4 formula, unclamped": lambda u0, u1, g: pbrt_hg(u0, u1, g, clamp=False), "Mitsuba 3": mitsuba_hg}
+                "PBRT-v4 formula, unclamped": lambda u0, u1, g: pbrt_hg(u0, u1, g, clamp=False),
+                "Mitsuba 3": mitsuba_hg}
     for g in HARD_G:
         for name, routine in routines.items():
             failures, worst = hg_failures(routine, with_zero, g)
@@ -273,10 +275,14 @@ def main(argv=None):
     # user's own) is rounded by it. Log-spaced float32 u from 2^-24 (where jaxsample's clamp
     # starts) to 1/2 show the lower tail.
     tail = np.geomspace(2.0 ** -24, 0.5, len(u)).astype(np.float32)
-    print("| u | routine | non-finite | quantile off by > 1e-3 of the tail mass | max relative quantile error | u = 0 |")
+    print("| u | routine | non-finite | quantile off by > 1e-3 of the tail mass "
+          "| max relative quantile error | u = 0 |")
     print("|---|---|---|---|---|---|")
-    for label, points in (("the source's points", with_zero), ("log-spaced in [2^-24, 1/2]", np.concatenate([[F32(0)], tail]))):
-        for name, routine in {"jaxsample (ndtri)": jaxsample_normal, "PBRT-v4 SampleNormal (erf⁻¹(2u - 1))": pbrt_normal}.items():
+    point_sets = (("the source's points", with_zero),
+                  ("log-spaced in [2^-24, 1/2]", np.concatenate([[F32(0)], tail])))
+    routines = {"jaxsample (ndtri)": jaxsample_normal, "PBRT-v4 SampleNormal (erf⁻¹(2u - 1))": pbrt_normal}
+    for label, points in point_sets:
+        for name, routine in routines.items():
             failures, worst = normal_failures(routine, points)
             rest = {k: m[1:] for k, m in failures.items()}
             # At u = 0 the quantile is -inf: only whether the sample is finite is asked there.

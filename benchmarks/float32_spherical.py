@@ -195,7 +195,8 @@ def textbook_triangle(a, b, c, u):
         cos_phi = np.cos(ap_pi) * -cos_a - np.sin(ap_pi) * sin_a
         k1 = cos_phi - cos_a
         k2 = sin_phi + sin_a * _dot(a, b)
-        cos_bp = (_products(k2, cos_phi, k1, sin_phi, -1) * cos_a - k2) / (_products(k2, sin_phi, k1, cos_phi, 1) * sin_a)
+        cos_bp = ((_products(k2, cos_phi, k1, sin_phi, -1) * cos_a - k2)
+                  / (_products(k2, sin_phi, k1, cos_phi, 1) * sin_a))
         cos_bp = np.clip(cos_bp, -1, 1)
         sin_bp = np.sqrt(np.maximum(F32(0), F32(1) - cos_bp * cos_bp))
         cp = cos_bp[:, None] * a + sin_bp[:, None] * _normalize(c - _dot(c, a) * a)
@@ -348,7 +349,8 @@ def main(argv=None):
     u = rng.random((args.points, 2)).astype(np.float32)
     for kind, random_shape, near in (("triangle", random_triangle, near_hemisphere_triangle),
                                       ("rectangle", random_rectangle, near_hemisphere_rectangle)):
-        shapes = [(f"{omega:g}", [_scaled_to(random_shape, omega, rng) for _ in range(args.shapes)]) for omega in TARGETS]
+        shapes = [(f"{omega:g}", [_scaled_to(random_shape, omega, rng) for _ in range(args.shapes)])
+                  for omega in TARGETS]
         shapes += [(f"2π - {gap:g}", [near(gap, rng) for _ in range(args.shapes)]) for gap in NEAR_HEMISPHERE]
         rows = measure(kind, shapes, u)
         print(f"\n{kind}s: {args.shapes} shapes x {args.points} uniforms per row, float32")

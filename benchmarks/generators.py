@@ -1,4 +1,4 @@
-"""The generator's cost per sample inside the estimator (issue 25, target 3), alternatives side by side.
+"""The generator's cost per sample inside the estimator, alternatives side by side.
 
     python benchmarks/generators.py [--log2n 24] [--repeats 7] [--rounds 2]
 
@@ -59,7 +59,8 @@ def candidate_words(name):
         def words(seed, block_index, stream, word_block=0):
             b = _block(block_index)
             high = jnp.zeros_like(b.lo) if b.hi is None else b.hi
-            counter = (b.lo, jnp.zeros_like(b.lo) + philox._u32(word_block), jnp.zeros_like(b.lo) + philox._u32(stream), high)
+            counter = (b.lo, jnp.zeros_like(b.lo) + philox._u32(word_block),
+                       jnp.zeros_like(b.lo) + philox._u32(stream), high)
             return philox.philox4x32(counter, (seed[..., 0], seed[..., 1]), rounds=rounds)
         return words
 

@@ -1,4 +1,5 @@
-"""What a gradient of `shade` costs next to its value: `python benchmarks/gradient_cost.py [--quick] [--n N] [--out FILE]`.
+"""What a gradient of `shade` costs next to its value:
+`python benchmarks/gradient_cost.py [--quick] [--n N] [--out FILE]`.
 
 For every BRDF x light x strategy x mode, in one process: the run time per radiance evaluation of
 the value (`shade(...).mean` under `jax.jit`), of `jax.grad` of it and of `shade_grad` (the gradient
@@ -9,7 +10,7 @@ Phong log-exponent, the Lambertian albedo, the rough conductor's GGX alpha; wher
 that gradient as biased (the BRDF's samples crossing an environment map's texel edges, attached
 "brdf" and "mis") the light's radiance scale is differentiated instead, and the row says so.
 
-The targets (issue 51): gradient / value run time at most 4, first call of the gradient at most
+The targets: gradient / value run time at most 4, first call of the gradient at most
 2.5x the value's, `shade_grad` at most 1.5x `jax.grad`. The table prints a row per configuration as
 it goes, then the medians over rows; `--out` writes the markdown table.
 """

@@ -50,7 +50,8 @@ def main(keys: int):
                 rows = []
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    js.estimate_guaranteed(f, sampler, jax.random.key(10_000), max_n=1 << 21, atol=tol, uniforms=uniforms)
+                    js.estimate_guaranteed(f, sampler, jax.random.key(10_000), max_n=1 << 21, atol=tol,
+                                           uniforms=uniforms)
                     for k in range(keys):
                         start = time.perf_counter()
                         est = js.estimate_guaranteed(f, sampler, jax.random.key(k), max_n=1 << 21, atol=tol,

@@ -1,4 +1,4 @@
-"""jaxsample against Mitsuba 3 on the same two estimates, in one process, interleaved (issue 25, target 1).
+"""jaxsample against Mitsuba 3 on the same two estimates, in one process, interleaved.
 
     python benchmarks/mitsuba_side_by_side.py [--log2n 24] [--repeats 7] [--out FILE.md]
 
@@ -15,11 +15,12 @@ process of its own, the two alternating `--alternations` times; in each, a syste
 called `--repeats` times in a seeded random order (`interleaved_medians`) after one warm-up call each
 (which compiles), and the table gives every process's median and the median of the paired ratios.
 
-Mitsuba is not a dependency: `pip install mitsuba` (3.9.1 with Dr.Jit 1.5.0 on 2026-12-04) into the
-same environment. Dr.Jit loads libLLVM at run time. This machine's own /lib/x86_64-linux-gnu/libLLVM-15
+Mitsuba is not a dependency: `pip install mitsuba` into the same environment (the results file
+`benchmarks/results/generators-and-mitsuba-cpu-2core-2026-12-04.md` names the versions it measured).
+Dr.Jit loads libLLVM at run time. This machine's own /lib/x86_64-linux-gnu/libLLVM-15
 loads but cannot compile Mitsuba's warps ("LLVM ERROR: Cannot select ... fmaximum": Dr.Jit emits
-llvm.maximum, which LLVM 15's x86 backend does not lower), so the figures in benchmarks/results/ were
-taken with Debian's LLVM 19 beside it:
+llvm.maximum, which LLVM 15's x86 backend does not lower), so it runs with Debian's LLVM 19 beside
+it, as for the figures in benchmarks/results/:
     apt-get install libllvm19
     DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so python benchmarks/mitsuba_side_by_side.py
 Without Mitsuba the script measures jaxsample alone and says so.
@@ -79,7 +80,8 @@ def mitsuba_programs(n):
             return float(mean[0] if hasattr(mean, "__len__") else mean)
         return run
 
-    return {"mitsuba cos3": program("cos3"), "mitsuba tilted": program("tilted")}, f"Mitsuba {mi.__version__}, Dr.Jit {dr.__version__}"
+    versions = f"Mitsuba {mi.__version__}, Dr.Jit {dr.__version__}"
+    return {"mitsuba cos3": program("cos3"), "mitsuba tilted": program("tilted")}, versions
 
 
 def _measure(system, n, repeats):
@@ -129,7 +131,8 @@ def main(argv=None):
     lines = [f"n = 2^{args.log2n}; per system the median of {args.repeats} calls in each of {args.alternations} "
              f"alternating processes; {platform.machine()}, {os.cpu_count()} cores; XLA_FLAGS={flags!r}; "
              + ", ".join(versions.values()) + ("" if runs["mitsuba"] else "; Mitsuba not installed"), "",
-             "| program | jaxsample M samples/s | Mitsuba 3 M samples/s | jaxsample / Mitsuba (median of the alternations) |",
+             "| program | jaxsample M samples/s | Mitsuba 3 M samples/s "
+             "| jaxsample / Mitsuba (median of the alternations) |",
              "|---|---|---|---|"]
     for name in ("cos3", "tilted"):
         ours = [n / t[name] / 1e6 for t in runs["jaxsample"]]

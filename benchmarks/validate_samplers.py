@@ -53,10 +53,12 @@ def main():
         "UniformTriangle R³": UniformTriangle(jnp.array([0., 0., 1]), jnp.array([1., .2, 0]), jnp.array([.3, 1., 2])),
         "UniformBox": UniformBox(jnp.array([-1., 0]), jnp.array([1., 3])),
         "Exponential 1e-6": Exponential(1e-6), "Exponential 1": Exponential(1.0), "Exponential 1e6": Exponential(1e6),
-        "TruncatedExp 1e-6, T=3": TruncatedExponential(1e-6, 3.0), "TruncatedExp 2, T=1.5": TruncatedExponential(2.0, 1.5),
+        "TruncatedExp 1e-6, T=3": TruncatedExponential(1e-6, 3.0),
+        "TruncatedExp 2, T=1.5": TruncatedExponential(2.0, 1.5),
         "Power 0": Power(0.0), "Power 3": Power(3.0), "Power 4 (max)": Power(4, "max"),
         "Discrete cdf 1e3 zeros": Discrete(w), "Discrete alias 1e3 zeros": Discrete(w, "alias"),
-        "PiecewiseConstant1D 1e3": PiecewiseConstant1D(w), "PiecewiseConstant2D 32x30": PiecewiseConstant2D(w[:960].reshape(32, 30)),
+        "PiecewiseConstant1D 1e3": PiecewiseConstant1D(w),
+        "PiecewiseConstant2D 32x30": PiecewiseConstant2D(w[:960].reshape(32, 30)),
         "Mixture exp(1)+exp(30)": Mixture((Exponential(1.0), Exponential(30.0)), [0.3, 0.7]),
     }
     for name, s in f32.items():
@@ -67,8 +69,10 @@ def main():
         report(name, s, next(keys), n_samples=1_000_000)
     with jax.enable_x64(True):
         f64 = {"Power 1e6 (f64)": Power(1e6),
-               "thin triangle R² 1e-12 (f64)": UniformTriangle(jnp.array([0., 0.]), jnp.array([1., 1.]), jnp.array([.5, .5 + 2e-12])),
-               "thin triangle R³ 1e-12 (f64)": UniformTriangle(jnp.array([0., 0., 0.]), jnp.array([1., 1., 1.]), jnp.array([.5, .5 + 2e-12, .5])),
+               "thin triangle R² 1e-12 (f64)": UniformTriangle(jnp.array([0., 0.]), jnp.array([1., 1.]),
+                                                              jnp.array([.5, .5 + 2e-12])),
+               "thin triangle R³ 1e-12 (f64)": UniformTriangle(jnp.array([0., 0., 0.]), jnp.array([1., 1., 1.]),
+                                                              jnp.array([.5, .5 + 2e-12, .5])),
                "TruncatedExp 1e6, T=2 (f64)": TruncatedExponential(1e6, 2.0)}
         for name, s in f64.items():
             report(name, s, next(keys))

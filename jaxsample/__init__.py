@@ -18,16 +18,20 @@ rest is reachable through its module (`js.samplers.RejectionInfo`, `js.estimator
 """
 
 from . import edges, estimators, numerics, quadrature, samplers, scene, uniforms
-from .estimators import (Estimate, UnreliableEstimateWarning, estimate, estimate_antithetic, estimate_control_variate,
-                         estimate_grad, estimate_guaranteed, estimate_mis, estimate_ratio, estimate_until, expectation,
+from .estimators import (Estimate, estimate, estimate_antithetic, estimate_control_variate, estimate_grad,
+                         estimate_guaranteed, estimate_mis, estimate_ratio, estimate_until, expectation,
                          expectation_grad)
-from .samplers import (CosineHemisphere, Discrete, Exponential, Frame, Mixture, Oriented, PhongLobe,
-                       PiecewiseConstant1D, PiecewiseConstant2D, Power, Pytree, Rejection, Sampler, Transformed,
-                       TruncatedExponential, UniformBox, UniformCone, UniformDisk, UniformHemisphere, UniformSphere,
-                       UniformTriangle, VonMisesFisher, parameter, point_method, static_field)
+from .samplers import (CosineHemisphere, Discrete, Exponential, Mixture, Oriented, PhongLobe, PiecewiseConstant1D,
+                       PiecewiseConstant2D, Power, Rejection, Sampler, Transformed, TruncatedExponential, UniformBox,
+                       UniformCone, UniformDisk, UniformHemisphere, UniformSphere, UniformTriangle, VonMisesFisher,
+                       parameter)
 from .samplers import Bilinear, HenyeyGreenstein, Linear, Normal, Normal2D, Tent
 from .samplers import CosineSphericalTriangle, SphericalRectangle, SphericalTriangle
 from .samplers import GGX, Beckmann, MicrofacetReflection, VisibleNormals
+
+# The attributes outside `__all__` that the docstring names, re-exported explicitly (`name as name`).
+from .estimators import UnreliableEstimateWarning as UnreliableEstimateWarning
+from .samplers import Frame as Frame, Pytree as Pytree, point_method as point_method, static_field as static_field
 
 __version__ = "0.1.0"
 

@@ -12,8 +12,8 @@ import os
 #   selection fusing multiplies and adds, `sample` and `sample_with_pdf` round differently, and the
 #   tests that hold them bit-equal fail; at level 1 they stay equal.
 # JAXSAMPLE_TEST_XLA_DEFAULTS=1 runs the suite on XLA's defaults instead, as users compile. The flags
-# must be set before JAX creates its backend. The timings behind both choices are in the messages of
-# the commits that made them (461a760, a86403d).
+# must be set before JAX creates its backend. The timings behind both choices are in this file's git
+# log (`git log tests/conftest.py`).
 if not os.environ.get("JAXSAMPLE_TEST_XLA_DEFAULTS"):
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "")
                                + " --xla_cpu_use_fusion_emitters=false --xla_backend_optimization_level=1").strip()

@@ -57,7 +57,7 @@ class Mutation:
 
 M = Mutation
 MUTATIONS = [
-    # ---- survivors of the first audit, each killed by a test written for it ----
+    # ---- defects a test was written for, each caught by that test ----
     M("cone-from-angle", "jaxsample/samplers/cone.py",
       "one_minus_cos_theta_max=2.0 * jnp.sin(0.5 * jnp.asarray(theta_max)) ** 2",
       "one_minus_cos_theta_max=jnp.sin(0.5 * jnp.asarray(theta_max)) ** 2",
@@ -217,7 +217,7 @@ MUTATIONS = [
       "return sum(light.pdf(self.point, wi) for light in self.lights)",
       ("tests/scene/test_scene.py::test_every_strategy_is_unbiased",),
       "the light-selection probability 1/K missing from the light density"),
-    # ---- the per-point engine and the sources' fast paths (issue 12) ----
+    # ---- the per-point engine and the sources' fast paths ----
     M("lanes-dot-drops-a-term", "jaxsample/_core/lanes.py",
       "for c in range(1, k):",
       "for c in range(1, k - 1):",
@@ -233,7 +233,8 @@ MUTATIONS = [
       "outs.append(_chained(combine, terms))",
       ("tests/_core/test_fast_path.py::test_max_and_min_follow_jax_derivative_at_ties",
        "tests/_core/test_fast_path.py::test_the_issue_example_at_a_three_way_tie"),
-      "jnp.max on lanes differentiated as a pairwise max chain: tied terms weighted 1/4, 1/4, 1/2, not vmap's 1/3 each"),
+      "jnp.max on lanes differentiated as a pairwise max chain: tied terms weighted 1/4, 1/4, 1/2, "
+      "not vmap's 1/3 each"),
     M("lanes-rule-errors-swallowed", "jaxsample/_core/lanes.py",
       "result = rule(self, eqn, lanes)",
       "try:\n            result = rule(self, eqn, lanes)\n        except (TypeError, ValueError):\n"
@@ -289,10 +290,11 @@ MUTATIONS = [
       "return True",
       ("tests/_core/test_lane_fallback.py::test_on_another_platform_lane_map_is_vmap_and_computed_once_the_identity",),
       "the lanes and computed_once's cond barrier run on a GPU or TPU, where they were never measured"),
-    # ---- gradients with error bars (issue 15) ----
+    # ---- gradients with error bars ----
     M("gradient-stderr-x3", "jaxsample/estimators/gradient_errors.py",
       "return dataclasses.replace(jax.tree_util.tree_map(unravel, est), gradient=True)",
-      "return dataclasses.replace(jax.tree_util.tree_map(unravel, est), gradient=True, stderr=unravel(3.0 * est.stderr))",
+      "return dataclasses.replace(jax.tree_util.tree_map(unravel, est), gradient=True, "
+      "stderr=unravel(3.0 * est.stderr))",
       ("tests/estimators/test_gradient_errors.py",),
       "the gradient's standard error three times too large (intervals cover too often)"),
     M("gradient-of-the-wrong-thing", "jaxsample/estimators/gradient_errors.py",
@@ -315,7 +317,7 @@ MUTATIONS = [
       "log_cos_product = self._log_cos_from_u(u[..., 2])",
       ("tests/estimators/test_gradient_errors.py",),
       "the measure-valued pair draws cos θ' from p_n instead of the product of two draws (biased)"),
-    # ---- issue 14: keys, batches, names, invalid input ----
+    # ---- keys, batches, names, invalid input ----
     M("legacy-key-other-stream", "jaxsample/_core/keys.py",
       "return jax.random.wrap_key_data(key)",
       "return jax.random.fold_in(jax.random.wrap_key_data(key), 1)",
@@ -393,7 +395,7 @@ MUTATIONS = [
       "if False:",
       ("tests/samplers/test_keys_batches_names.py", "-k", "not_a_number"),
       "a string parameter is accepted at construction and fails later"),
-    # ---- the report's verdicts: time to a given error (issue 17) ----
+    # ---- the report's verdicts: time to a given error ----
     M("verdict-interpolation-takes-the-later-point", "jaxsample/report/verdicts.py",
       "log_t = math.log(t[j - 1]) + fraction * (math.log(t[j]) - math.log(t[j - 1]))",
       "log_t = math.log(t[j])",
@@ -474,7 +476,7 @@ MUTATIONS = [
       "POINT_SET_KINDS = {\"sobol\": \"stratified\",",
       ("tests/report/test_verdicts.py::test_strategy_kind_comes_from_its_definition",),
       "Sobol' strategies coloured and ranked as stratified"),
-    # ---- integrands: pytrees and complex values (issue 14, item 4) ----
+    # ---- integrands: pytrees and complex values ----
     M("integrand-complex-parts-swapped", "jaxsample/estimators/integrand.py",
       "part = jax.lax.complex(part, imaginary)",
       "part = jax.lax.complex(imaginary, part)",
@@ -508,7 +510,7 @@ MUTATIONS = [
       '(integrand_layout(fn, sampler, flat.dtype, owner), owner, "make(params)[0]",',
       ("tests/estimators/test_integrands.py::test_integrands_an_estimator_cannot_take_raise_a_type_error",),
       "estimate_grad takes a pytree integrand and fails deep inside (KeyError) instead of a clear TypeError"),
-    # ---- n and 64-bit sample indices (issue 14, item 5) ----
+    # ---- n and 64-bit sample indices ----
     M("philox-high-word-dropped", "jaxsample/uniforms/philox.py",
       "high = jnp.zeros_like(low) if block.hi is None else block.hi",
       "high = jnp.zeros_like(low)",
@@ -561,7 +563,7 @@ MUTATIONS = [
       "base = device.astype(jnp.uint32) * jnp.uint32(per_device)",
       ("tests/uniforms/test_large_index.py::test_estimators_take_n_up_to_2_to_the_40",),
       "the device-mesh path keeps 32-bit device bases (it cannot take n past 2^32 per device)"),
-    # ---- the sampler contract (issue 13: one suite over every sampler) ----
+    # ---- the sampler contract: one suite over every sampler ----
     M("contract-gradient-nan-at-zero", "jaxsample/_core/numerics.py",
       "root = jnp.sqrt(jnp.where(positive, x, 1.0))",
       "root = jnp.sqrt(jnp.maximum(x, 0.0))",
@@ -597,7 +599,7 @@ MUTATIONS = [
       "concrete = None",
       ("tests/test_quadrature.py",),
       "concrete bounds are treated as traced: reversed or infinite bounds are no longer rejected"),
-    # ---- eager calls run as one compiled program (issue 13: suite time; speed of eager calls) ----
+    # ---- eager calls run as one compiled program (suite time; speed of eager calls) ----
     M("estimate-not-compiled-eagerly", "jaxsample/estimators/plain.py",
       '@compiled_entry("f", "n", "uniforms", "mode", "mesh", "chunk_size", "dtype")\n',
       "",
@@ -655,7 +657,7 @@ MUTATIONS = [
       "jnp.where(far, 2.0 - direct, t)", "t",
       ("tests/samplers/test_directional.py::test_vmf_far_hemisphere_direction_and_density_agree",),
       "beyond the equator the VMF direction and its density disagree by 8e-4 (found by k-hat)"),
-    # ---- boundary terms: gradients when a parameter moves an edge (issue 23) ----
+    # ---- boundary terms: gradients when a parameter moves an edge ----
     M("boundary-term-dropped", "jaxsample/estimators/boundary.py",
       "total = total + weight * speed.reshape(speed.shape + (1,) * (weight.ndim - 1))",
       "total = total + 0.0 * weight * speed.reshape(speed.shape + (1,) * (weight.ndim - 1))",
@@ -684,7 +686,7 @@ MUTATIONS = [
       "return interior(u) + shading.boundary_values(t, strategy, exponent)",
       "return interior(u) + 0.0 * shading.boundary_values(t, strategy, exponent)",
       ("tests/scene/test_shade_gradients.py::test_every_gradient_agrees_with_the_reference",),
-      "shade without the silhouette term: brdf's light gradient 0, mis 5-100 sd off (the issue's table)"),
+      "shade without the silhouette term: brdf's light gradient 0, mis 5-100 sd off"),
     M("shade-brdf-flow-ignored", "jaxsample/scene/direct.py",
       "total = total + add(c(w_in) * f_in - c(w_out) * f_out, (self.brdf_flow,))",
       "total = total + add(c(w_in) * f_in - c(w_out) * f_out, ())",
@@ -730,7 +732,7 @@ MUTATIONS = [
       "        return self.colour(light.radiance_from(self.point, wi), wi.ndim - 1)",
       "        return self.colour(light.radiance_from(self.point, wi)[..., :1], wi.ndim - 1)",
       ("tests/scene/test_colour.py::test_each_channel_equals_the_scalar_run_on_the_same_key",),
-      "radiance seen along BRDF samples reduced to its first channel (the issue's 'colour silently dropped')"),
+      "radiance seen along BRDF samples reduced to its first channel: colour silently dropped"),
     M("shade-refusal-skipped", "jaxsample/scene/direct.py",
       "    _refuse(strategy, mode, primals[4], tangents)", "    pass",
       ("tests/scene/test_shade_gradients.py::test_gradients_that_cannot_be_unbiased_are_refused",),
@@ -788,7 +790,7 @@ MUTATIONS = [
       "for start in range(0, n - n % chunk, chunk):",
       ("tests/report/test_report.py::test_the_numpy_baseline_draws_every_sample_when_n_is_not_a_multiple_of_its_chunk",),
       "the NumPy baseline drops the last partial chunk: below one chunk (--tiny's 2^16) it does no work"),
-    # ---- errors in the library's words (issue 29): each refusal removed, its test must notice ----
+    # ---- errors in the library's words: each refusal removed, its test must notice ----
     M("sampler-class-accepted", "jaxsample/samplers/base.py",
       "    if isinstance(value, type) and issubclass(value, Sampler):", "    if False:",
       ("tests/estimators/test_worded_errors.py::test_a_sampler_class_for_an_instance_is_named_by_every_entry_point",),
@@ -821,7 +823,7 @@ MUTATIONS = [
       "    if library:", "    if True:",
       ("tests/estimators/test_worded_errors.py::test_a_user_sampler_without_inverse_is_not_told_its_warp_is_not_a_bijection",),
       "a user's sampler without inverse told that its warp is not a bijection"),
-    # ---- Henyey–Greenstein, Gaussians, tent, linear, bilinear (jaxsample issue 24, part 3) ----
+    # ---- Henyey–Greenstein, Gaussians, tent, linear, bilinear ----
     M("hg-negative-g-cancels", "jaxsample/samplers/henyey_greenstein.py",
       "one_plus_g - g * rest)      # 1 + gξ", "1.0 + g * xi)      # 1 + gξ",
       ("tests/samplers/test_phase_and_simple.py::test_hg_warp_matches_exact_rational_arithmetic_at_the_hard_g",),
@@ -862,7 +864,7 @@ MUTATIONS = [
       "return _all_of(super()._parameters_valid(), positive)", "return super()._parameters_valid()",
       ("tests/samplers/test_phase_and_simple.py::test_invalid_parameters_raise_and_traced_ones_give_nan",),
       "Linear(0, 0) under jit: finite samples of a density that is 0 everywhere, not NaN"),
-    # ---- issue 30: options and error bars that had no test of their own ----
+    # ---- options and error bars, each with a test of its own ----
     M("until-atol-ignored", "jaxsample/estimators/until.py",
       'tolerance = jnp.maximum(atol_, rtol_ * layout.magnitudes(statistics["mean"]))',
       'tolerance = rtol_ * layout.magnitudes(statistics["mean"])',
@@ -907,7 +909,7 @@ MUTATIONS = [
       'return _rearranged(eqn, np.concatenate(cells, axis=0))',
       ("tests/_core/test_lanes.py::test_lane_map_equals_vmap", "tests/_core/test_lanes_property.py"),
       "a concatenation on lanes always joined along axis 0 (an hstack of blocks wrong)"),
-    # ---- the lane interpreter against vmap, on programs hypothesis writes (issue 30) ----
+    # ---- the lane interpreter against vmap, on programs hypothesis writes ----
     M("lanes-pad-sides-swapped", "jaxsample/_core/lanes.py",
       'pad = [(lo, hi) for lo, hi, _ in eqn.params["padding_config"]]',
       'pad = [(hi, lo) for lo, hi, _ in eqn.params["padding_config"]]',
@@ -948,7 +950,7 @@ MUTATIONS = [
       "return ans, picked",
       ("tests/_core/test_lanes_property.py",),
       "jnp.max on lanes at a tie: the tangents of the tied terms summed, not averaged"),
-    # ---- every option takes effect (issue 30) ----
+    # ---- every option takes effect ----
     M("chunk-size-ignored", "jaxsample/estimators/engine.py",
       "    return int(chunk_size)",
       "    return DEFAULT_CHUNK_SIZE",
@@ -980,7 +982,7 @@ MUTATIONS = [
       'exponent = heuristic_exponent("shade", heuristic)',
       ("tests/scene/test_scene.py::test_shade_mis_weights_are_the_documented_heuristic_on_the_same_samples",),
       "shade(heuristic='power', beta=3) weights with the default beta = 2"),
-    # ---- microfacet distributions and their lobes (issue 24, part 1) ----
+    # ---- microfacet distributions and their lobes ----
     M("ggx-d-wrong-power", "jaxsample/samplers/microfacet_ggx.py",
       "-jnp.log(np.pi * ax * ay) - 2.0 * jnp.log(q)", "-jnp.log(np.pi * ax * ay) - 1.9 * jnp.log(q)",
       ("tests/samplers/test_microfacet.py::test_projected_normal_distribution_integrates_to_one",),
@@ -1024,9 +1026,10 @@ MUTATIONS = [
       ("tests/samplers/test_contract.py::test_normalization_within_1e_6[MicrofacetReflection-GGX]",),
       "the reflection's density with 1/(2 wo·m) for 1/(4 wo·m): it integrates to 2"),
     # ---- end microfacet ----
-    # ---- rough conductor, quad light, solid-angle light sampling (jaxsample issue 24, the scene side) ----
+    # ---- rough conductor, quad light, solid-angle light sampling ----
     M("conductor-fresnel-rp-sign", "jaxsample/scene/rough_conductor.py",
-      "r_p = safe_div((e_r * c - a) ** 2 + (e_i * c - b) ** 2,", "r_p = safe_div((e_r * c - a) ** 2 + (e_i * c + b) ** 2,",
+      "r_p = safe_div((e_r * c - a) ** 2 + (e_i * c - b) ** 2,",
+      "r_p = safe_div((e_r * c - a) ** 2 + (e_i * c + b) ** 2,",
       ("tests/scene/test_rough_conductor_and_quad.py::test_conductor_fresnel_closed_forms",),
       "R_p's numerator with Im(η² c − z) as e_i c + b: right for a dielectric (b = 0), wrong for a metal"),
     M("conductor-fresnel-cancelling-root", "jaxsample/scene/rough_conductor.py",
@@ -1055,7 +1058,8 @@ MUTATIONS = [
     M("quad-area-density-cosine", "jaxsample/scene/quad_light.py",
       "return wi, safe_div(distance2, area * jnp.abs(cos_light)), cos_light",
       "return wi, safe_div(distance2, area), cos_light",
-      ("tests/scene/test_rough_conductor_and_quad.py::test_quad_light_checks_and_its_two_densities", "tests/scene/test_rough_conductor_and_quad.py::test_every_strategy_and_sampling_is_unbiased"),
+      ("tests/scene/test_rough_conductor_and_quad.py::test_quad_light_checks_and_its_two_densities",
+       "tests/scene/test_rough_conductor_and_quad.py::test_every_strategy_and_sampling_is_unbiased"),
       "area sampling's density without the cosine of the area-to-solid-angle Jacobian"),
     M("quad-reference-cosine", "jaxsample/scene/reference.py",
       "weights = area * np.outer(w_s, w_r).ravel() * np.abs(cos_light) / distance2",
@@ -1071,7 +1075,7 @@ MUTATIONS = [
       'gradient[:, CONDUCTOR_QUAD_PARAMETERS.index("log_alpha")]', "gradient[:, 1]",
       ("tests/scene/test_rough_conductor_and_quad.py::test_roughness_fit_recovers_alpha",),
       "the roughness fit follows ∂L/∂corner_y instead of ∂L/∂log α"),
-    # ---- solid-angle sampling of spherical triangles and rectangles (issue 24, part 2) ----
+    # ---- solid-angle sampling of spherical triangles and rectangles ----
     M("spherical-triangle-lambda-half", "jaxsample/samplers/spherical_triangle.py",
       'lam = 2.0 * s * k * (g["la"] * t * c + s * g["x"])', 'lam = s * k * (g["la"] * t * c + s * g["x"])',
       ("tests/samplers/test_spherical_polygons.py::test_cosine_density_is_the_bilinear_cosine_weight_over_the_solid_angle",),
@@ -1097,7 +1101,8 @@ MUTATIONS = [
       ("tests/samplers/test_spherical_polygons.py::test_float32_is_exact_to_rounding_at_the_hard_solid_angles",),
       "the inverse's u0 from the strips E where the foot is outside the rectangle: E(x0) >> Omega rounds"),
     M("same-sign-difference-plain", "jaxsample/samplers/_spherical.py",
-      "return jnp.where(same, stable, safe_div(p, r_p) - safe_div(q, r_q))", "return safe_div(p, r_p) - safe_div(q, r_q)",
+      "return jnp.where(same, stable, safe_div(p, r_p) - safe_div(q, r_q))",
+      "return safe_div(p, r_p) - safe_div(q, r_q)",
       ("tests/samplers/test_spherical_polygons.py::test_the_difference_of_two_close_ratios_keeps_full_precision",),
       "h1 - h0 of a short far edge as the difference of two rounded ratios"),
     M("spherical-rectangle-point-from-corner", "jaxsample/samplers/spherical_rectangle.py",
@@ -1111,15 +1116,18 @@ MUTATIONS = [
       "the inside test without slack: a sampler's own samples on an edge get density 0"),
     M("lhs-many-coordinates-one-loop", "jaxsample/uniforms/lhs.py",
       "if dims > STORE_PAST else lanes", "if dims > 10 ** 6 else lanes",
-      ("tests/uniforms/test_point_sets.py::test_many_coordinates_are_stored_in_groups_without_changing_a_point",), "every coordinate of a 28-d Latin hypercube in one unvectorized loop (9x Random)"),
+      ("tests/uniforms/test_point_sets.py::test_many_coordinates_are_stored_in_groups_without_changing_a_point",),
+      "every coordinate of a 28-d Latin hypercube in one unvectorized loop (9x Random)"),
     M("halton-many-coordinates-one-loop", "jaxsample/uniforms/halton.py",
       "if dims > STORE_PAST else lanes", "if dims > 10 ** 6 else lanes",
-      ("tests/uniforms/test_point_sets.py::test_many_coordinates_are_stored_in_groups_without_changing_a_point",), "every coordinate of a 56-d Halton set in one unvectorized loop (7x Random)"),
+      ("tests/uniforms/test_point_sets.py::test_many_coordinates_are_stored_in_groups_without_changing_a_point",),
+      "every coordinate of a 56-d Halton set in one unvectorized loop (7x Random)"),
     M("stored-lanes-misordered", "jaxsample/uniforms/_replicated.py",
       "return list(computed_once(lanes[:-keep], token)) + list(lanes[-keep:])",
       "return list(lanes[-keep:]) + list(computed_once(lanes[:-keep], token))",
-      ("tests/uniforms/test_point_sets.py::test_many_coordinates_are_stored_in_groups_without_changing_a_point",), "the stored lanes put after the fused ones: coordinates permuted"),
-    # ---- the guaranteed stopping rule (estimators/guaranteed.py; issue 26) ----
+      ("tests/uniforms/test_point_sets.py::test_many_coordinates_are_stored_in_groups_without_changing_a_point",),
+      "the stored lanes put after the fused ones: coordinates permuted"),
+    # ---- the guaranteed stopping rule (estimators/guaranteed.py) ----
     M("guaranteed-lattice-values-unordered", "jaxsample/estimators/guaranteed.py",
       "return np.fft.fft(values[_bit_reversed(m)], axis=0) / n", "return np.fft.fft(values, axis=0) / n",
       ("tests/estimators/test_guaranteed.py::test_lattice_coefficients_are_the_dft_over_the_rule_in_natural_order",
@@ -1156,32 +1164,41 @@ MUTATIONS = [
     M("guaranteed-bound-one-level-up", "jaxsample/estimators/guaranteed.py",
       "bound = fudge(m) * level_sum(self.order, magnitude, m - LAG)",
       "bound = fudge(m) * level_sum(self.order, magnitude, m - LAG + 1)",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",), "the bound sums the coefficients r - 1 levels down (found surviving by review)"),
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",),
+      "the bound sums the coefficients r - 1 levels down"),
     M("guaranteed-bound-one-level-down", "jaxsample/estimators/guaranteed.py",
       "bound = fudge(m) * level_sum(self.order, magnitude, m - LAG)",
       "bound = fudge(m) * level_sum(self.order, magnitude, m - LAG - 1)",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",), "the bound sums the coefficients r + 1 levels down (found surviving by review)"),
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",),
+      "the bound sums the coefficients r + 1 levels down"),
     M("guaranteed-fudge-ten-times", "jaxsample/estimators/guaranteed.py",
       "return 5.0 * np.exp2(", "return 50.0 * np.exp2(",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",), "a bound ten times too conservative (found surviving by review)"),
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",),
+      "a bound ten times too conservative"),
     M("guaranteed-smallest-replicate-bound", "jaxsample/estimators/guaranteed.py",
       "mean, bound = rounded(means.mean(axis=0), per_replicate.mean(axis=0), dtype)",
       "mean, bound = rounded(means.mean(axis=0), per_replicate.min(axis=0), dtype)",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",), "the smallest replicate's bound, not their mean: no longer a bound on the mean's error"),
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",),
+      "the smallest replicate's bound, not their mean: no longer a bound on the mean's error"),
     M("guaranteed-mean-of-one-replicate", "jaxsample/estimators/guaranteed.py",
       "mean, bound = rounded(means.mean(axis=0), per_replicate.mean(axis=0), dtype)",
       "mean, bound = rounded(means[0], per_replicate.mean(axis=0), dtype)",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops", "tests/estimators/test_guaranteed.py::test_mean_and_stderr_are_those_of_estimate_on_the_same_points"),
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",
+       "tests/estimators/test_guaranteed.py::test_mean_and_stderr_are_those_of_estimate_on_the_same_points"),
       "the estimate from replicate 0 alone"),
     M("guaranteed-cone-in-first-column-only", "jaxsample/estimators/guaranteed.py",
-      "holds = np.all(self.lower <= self.upper, axis=0)", "holds = np.all(self.lower[:, :1] <= self.upper[:, :1], axis=0)",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",), "the cone's condition checked for the first replicate's first component only"),
+      "holds = np.all(self.lower <= self.upper, axis=0)",
+      "holds = np.all(self.lower[:, :1] <= self.upper[:, :1], axis=0)",
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",),
+      "the cone's condition checked for the first replicate's first component only"),
     M("guaranteed-replicates-compared-at-the-last-m", "jaxsample/estimators/guaranteed.py",
       "agreed &= bool(", "agreed = bool(",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",), "the replicates' intervals compared only where the loop stops"),
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",),
+      "the replicates' intervals compared only where the loop stops"),
     M("guaranteed-later-m-reorders-one-level", "jaxsample/estimators/guaranteed.py",
       "range(m - 1, max(m - LAG, 1) - 1, -1)", "range(m - 1, m - 2, -1)",
-      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",), "after the first m only the top level is reordered (GAIL: r levels)"),
+      ("tests/estimators/test_guaranteed.py::test_matches_the_rule_written_as_loops",),
+      "after the first m only the top level is reordered (GAIL: r levels)"),
     M("guaranteed-swaps-ties", "jaxsample/estimators/guaranteed.py",
       "swap = later > earlier", "swap = later >= earlier",
       ("tests/estimators/test_guaranteed.py::test_the_orderings_and_bounds_equal_the_loops_on_tied_coefficients",),
@@ -1207,7 +1224,7 @@ MUTATIONS = [
       "if any(isinstance(c, jax.core.Tracer) for c in closed):", "if False:",
       ("tests/estimators/test_guaranteed.py::test_no_tolerance_a_nan_integrand_a_batch_and_tracing_are_refused",),
       "an integrand closing over a traced value crashes deep in NumPy instead of a worded TypeError"),
-    # ---- the replicated point sets (uniforms/lattice.py, halton.py, lhs.py; issue 26) ----
+    # ---- the replicated point sets (uniforms/lattice.py, halton.py, lhs.py) ----
     M("point-sets-shared-across-dims", "jaxsample/uniforms/_replicated.py",
       "column = jax.lax.broadcasted_iota(jnp.uint32, shape, axes[1])",
       "column = jnp.zeros(shape, dtype=jnp.uint32)",
@@ -1226,7 +1243,8 @@ MUTATIONS = [
     M("lattice-short-dual-vector", "jaxsample/uniforms/lattice.py",
       "1 182667 279195 223491", "1 182667 469891 223491",
       ("tests/uniforms/test_point_sets.py::test_lattice_vector_has_no_short_dual_vector_in_three_dimensions",),
-      "the third coordinate of the old order-2-weight vector: h = (-1, -11, -2), the shortest dual vector for m = 13 .. 16"),
+      "the third coordinate of Kuo's order-2-weight vector lattice-32001: h = (-1, -11, -2), the shortest dual "
+      "vector for m = 13 .. 16"),
     M("lattice-sawtooth-not-tent", "jaxsample/uniforms/lattice.py",
       "return (w << _u32(1)) ^ (_u32(0) - (w >> _u32(31)))", "return w << _u32(1)",
       ("tests/uniforms/test_point_sets.py::test_lattice_source_is_the_shifted_rule_with_the_tent",
@@ -1240,7 +1258,7 @@ MUTATIONS = [
       "point = index_range(floordiv(start, replicates), per)", "point = index_range(start, per)",
       ("tests/uniforms/test_point_sets.py::test_chunking_and_lanes_never_change_the_points",),
       "the estimators' (count / R, R) lanes index points by the global offset, not offset / R"),
-    # ---- many outputs per point: the generator and the warp stored once (issue 25) ----
+    # ---- many outputs per point: the generator and the warp stored once ----
     M("many-outputs-sample-not-stored", "jaxsample/estimators/plain.py",
       "        x, pdf = stored_once((x, pdf))", "        pass",
       ("tests/_core/test_fast_path.py::test_a_many_output_estimate_runs_the_generator_in_a_few_loops_not_one_per_output",),
@@ -1256,7 +1274,7 @@ MUTATIONS = [
     M("report-picks-not-shown", "jaxsample/report/__init__.py",
       "            convergence.picks_markdown(rows)]", "            ]",
       ("tests/report/test_report.py::test_in_tiny_mode_the_top_says_smoke_test_and_no_verdicts_are_drawn",),
-      "the report must say which point set the headline picks per integrand (issue 26)"),
+      "the report must say which point set the headline picks per integrand"),
     M("sobol-lms-split-table-off-by-one", "jaxsample/uniforms/sources.py",
       "generator[..., low_bits:], bits - low_bits)", "generator[..., low_bits - 1:], bits - low_bits)",
       ("tests/uniforms/test_sobol_qmc.py::test_lms_lanes_split_tables_equal_the_per_point_scramble",),
@@ -1357,7 +1375,7 @@ MUTATIONS = [
       "jitter = bits_to_unit(_mix32(layout.take(words[1][0][j])), dtype)",
       ("tests/uniforms/test_point_sets.py::test_latin_hypercube_jitter_is_uniform_in_each_stratum_and_independent",),
       "one jitter per replicate and coordinate: every point at the same place in its stratum"),
-    # ---- issue 26: Sobol' to 1024 dimensions, linear matrix scrambling, padding ----
+    # ---- Sobol' to 1024 dimensions, linear matrix scrambling, padding ----
     M("sobol-joe-kuo-1024-digit", "jaxsample/uniforms/new_joe_kuo_6_21201_1024.txt",
       "1024 13 3538 1 1 5 11 11 33 37 29 263 1019 657 1453 7807",
       "1024 13 3538 1 1 5 11 11 33 37 29 263 1019 657 1453 7805",
@@ -1368,7 +1386,7 @@ MUTATIONS = [
       "value = first << degree.astype(np.uint64)",
       ("tests/uniforms/test_sobol_qmc.py::test_every_joe_kuo_dimension_is_a_net_with_the_sobol_t_bound",),
       "the Joe-Kuo recurrence drops its m_(k-s) term (generator matrices no longer nonsingular)"),
-    # ---- the adapters to NumPyro, distrax and TFP (issue 27) ----
+    # ---- the adapters to NumPyro, distrax and TFP ----
     M("adapters-sphere-reparam-without-prior", "jaxsample/adapters/_numpyro.py",
       'numpyro.factor(f"{name}_density", fn.log_prob(value) + jnp.log(4.0 * jnp.pi))',
       'numpyro.factor(f"{name}_density", 0.0 * fn.log_prob(value))',
@@ -1415,7 +1433,7 @@ MUTATIONS = [
       "        return x, jnp.exp(self.distribution.log_prob(x))", "        return x, self.distribution.log_prob(x)",
       ("tests/adapters/test_adapters.py::test_estimators_take_a_foreign_distribution",),
       "a foreign distribution's density taken as its log: every estimate divides by log p"),
-    # ---- the point sets against dimension study (issue 26) ----
+    # ---- the point sets against dimension study ----
     M("point-set-dims-smooth-factor-off-one", "jaxsample/report/point_set_dims.py",
       "(0.5 * jnp.pi * jnp.sin(jnp.pi * x) - 1.0) / i", "(0.5 * jnp.pi * jnp.sin(jnp.pi * x) - 0.9) / i",
       ("tests/report/test_point_set_dims.py::test_the_smooth_product_integrates_to_one_by_gauss_legendre_in_float64",),
@@ -1433,7 +1451,7 @@ MUTATIONS = [
       'block = C._single_replicate_block("random", _both, d, ns[-1])',
       ("tests/report/test_point_set_dims.py::test_a_tiny_study_has_its_columns_and_sobol_beats_random_on_the_smooth_product",),
       "every set of the study silently draws plain random points"),
-    # ---- issue 25: elementary functions on the warps' own arguments ----
+    # ---- elementary functions on the warps' own arguments ----
     M("sincos-taylor-coefficients", "jaxsample/_core/numerics.py",
       "np.float32(-0.00019594157)", "np.float32(-1.0 / 5040.0)",
       ("tests/_core/test_numerics.py::test_sincos_small_is_within_its_stated_ulps_on_the_octant",
@@ -1443,7 +1461,7 @@ MUTATIONS = [
       "cos_phi = jnp.where(a_wins, cos_psi, sin_psi)", "cos_phi = jnp.where(a_wins, cos_psi, cos_psi)",
       ("tests/_core/test_numerics.py::test_concentric_map_is_within_2_to_the_minus_22_of_float64",),
       "the |b| >= |a| wedges must take cos φ = sin ψ (φ = π/2 - ψ)"),
-    # ---- issue 25: the differentiated chunk reads its uniforms stored once ----
+    # ---- the differentiated chunk reads its uniforms stored once ----
     M("grad-tangents-on-unstored-uniforms", "jaxsample/estimators/engine.py",
       "once = flat if stored else computed_once(flat, tok)", "once = flat",
       ("tests/_core/test_fast_path.py::test_a_differentiated_estimate_runs_the_generator_once_per_pass_not_once_per_residual",),
@@ -1458,7 +1476,7 @@ MUTATIONS = [
       "traced = [isinstance(c, jax.core.Tracer) and jnp.issubdtype(c.dtype, jnp.inexact) for c in closed.consts]",
       ("tests/_core/test_fast_path.py::test_a_differentiated_estimate_may_close_over_traced_integers_bools_and_keys",),
       "a traced int, bool or key left as a constant of the replayed jaxpr leaks into the JVP rule "
-      "(jax.closure_convert's behaviour; stop 43's regression)"),
+      "(jax.closure_convert's behaviour)"),
     M("lanes-shared-operand-narrowed-to-x64-off", "jaxsample/_core/lanes.py",
       "with jax.enable_x64(jnp.dtype(dtype).itemsize == 8 or jax.config.jax_enable_x64):",
       "with jax.enable_x64(jax.config.jax_enable_x64):",
@@ -1500,7 +1518,8 @@ MUTATIONS = [
        "test_the_far_light_reproduction_is_finite_and_agrees_with_the_reference",
        "tests/scene/test_far_light_gradients.py::test_value_and_gradients_are_finite_wherever_the_light_sits"),
       "the Phong flow through u0 = -expm1(log xi) and back by log1p(-u0), unguarded: u0 rounds to 1 in the "
-      "lobe's tail, and shade's attached brdf and mis gradients in the exponent are NaN (the issue's far light)"),
+      "lobe's tail, and shade's attached brdf and mis gradients in the exponent are NaN "
+      "(the far light of test_far_light_gradients)"),
     M("scene-point-inside-sphere-accepted", "jaxsample/scene/checks.py",
       "if inside is not None and bool(inside):", "if False:",
       ("tests/scene/test_scene_checks.py::test_a_point_inside_or_on_a_sphere_light",),
@@ -1522,7 +1541,7 @@ MUTATIONS = [
       "return jax.random.fold_in(fixed_key(\"shared\"), sum(_drawn.values()))",
       ("tests/test_hermetic_keys.py::test_a_tests_keys_do_not_depend_on_what_ran_before",),
       "test keys drawn from state shared across tests: a test's numbers depend on what ran before it"),
-    # ---- issue 51: a gradient the size of its mathematics ----
+    # ---- a gradient the size of its mathematics ----
     M("gradient-reverse-through-the-loop", "jaxsample/estimators/engine.py",
       "FORWARD_WIDTH = 8", "FORWARD_WIDTH = 0",
       ("tests/estimators/test_gradient_programs.py::test_the_shade_gradient_is_a_forward_pass_of_bounded_size",),
@@ -1541,7 +1560,9 @@ MUTATIONS = [
       ("tests/estimators/test_gradient_programs.py::test_the_forward_derivative_of_a_stream_is_the_reverse_one",),
       "the forward stream's M2 tangent without its factor 2: d(stderr) and d(variance) off by half"),
     M("gradient-replicate-sums-pooled", "jaxsample/estimators/engine.py",
-      "sums=per_replicate[:, 0] @ t,", "sums=jnp.broadcast_to(jnp.mean(per_replicate[:, 0] @ t, axis=0), per_replicate.shape[:1] + per_replicate.shape[2:-1]),",
+      "sums=per_replicate[:, 0] @ t,",
+      "sums=jnp.broadcast_to(jnp.mean(per_replicate[:, 0] @ t, axis=0), "
+      "per_replicate.shape[:1] + per_replicate.shape[2:-1]),",
       ("tests/estimators/test_gradient_programs.py::test_the_forward_derivative_of_a_stream_is_the_reverse_one",),
       "every replicate given the mean tangent: the derivative of a Sobol' stderr (the replicates' spread) is 0"),
     M("lanes-safe-sqrt-custom-rule", "jaxsample/_core/numerics.py",

@@ -2,7 +2,7 @@
 pages that hold the manual it points to.
 
 Every ```python block of README.md runs; so do the blocks of the docs pages in `PAGES` (the manual
-the README hands on to: the layer pages whose examples the README used to carry) and the example
+the README hands on to: the layer pages that hold the examples of each layer) and the example
 scripts the docs show without running (`SHOWN`). They run in a fresh interpreter with a temporary
 working directory, so they see the installed package (not the checkout's files), and `.ci/run` runs
 this file on the oldest supported versions too. A README block runs in a namespace of its own, so it
@@ -35,7 +35,8 @@ def python_blocks(text: str) -> list[str]:
 BLOCKS = python_blocks(README.read_text())
 # (name, blocks run in order in one namespace)
 UNITS = ([(f"README block {i}", [block]) for i, block in enumerate(BLOCKS)]
-         + [(f"docs/site/{page}", [b for b in python_blocks((SITE / page).read_text()) if not b.startswith("# not run")])
+         + [(f"docs/site/{page}",
+             [b for b in python_blocks((SITE / page).read_text()) if not b.startswith("# not run")])
             for page in PAGES]
          + [(f"docs/site/{script}", [(SITE / script).read_text()]) for script in SHOWN])
 

@@ -277,7 +277,8 @@ def _document_parameters(cls) -> None:
              for name, spec in own.items()]
     marker = "    Declared parameter ranges"
     doc = cls.__doc__.split("\n\n" + marker)[0].rstrip()
-    cls.__doc__ = doc + "\n\n" + marker + " (checked when concrete; NaN outputs when traced):\n" + "\n".join(lines) + "\n"
+    cls.__doc__ = (doc + "\n\n" + marker + " (checked when concrete; NaN outputs when traced):\n"
+                   + "\n".join(lines) + "\n")
 
 
 def to_float64(tree):

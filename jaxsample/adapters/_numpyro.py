@@ -148,13 +148,14 @@ class SphereReparam(Reparam):
 
     The radial law (`radius_scale`): |z| = exp(s ε), ε ~ N(0, 1), s = `radius_scale` (default
     0.05), so |z| stays within about exp(±4s) of 1 (0.82 to 1.22 at the default); its density over
-    R³ is f(|z|) / (4π |z|²), f the log-normal density. Why not z ~ N(0, I) (`radius_scale=None`,
-    the law before): the radius then follows the chi(3) law (5% to 95% between 0.6 and 2.8, and
+    R³ is f(|z|) / (4π |z|²), f the log-normal density. Why not z ~ N(0, I) (`radius_scale=None`):
+    the radius then follows the chi(3) law (5% to 95% between 0.6 and 2.8, and
     down towards 0), and a direction whose posterior has angular width σ is |z| σ wide across the
     radius in z-space. A concentrated direction (σ = 1/√(κN) ≈ 0.026 rad for N = 100 draws of a
     vMF with κ = 15) is then a funnel: its width changes about fivefold between the radius's 5% and
     95% points, a step size that suits |z| ≈ 1.5 diverges near |z| ≈ 0.6 (where the worst
-    key's divergent draws lay: 17 of 20 at |z| < 0.8), and the narrow direction, oblique to the coordinate axes, is what a diagonal
+    key's divergent draws lay: 17 of 20 at |z| < 0.8), and the narrow direction, oblique to the
+    coordinate axes, is what a diagonal
     mass matrix cannot undo. Measured on that model (mean direction and κ unknown, 500 warm-up
     steps and 500 draws, one chain, keys 0 to 9): N(0, I) diverged on every key (1 to 20 times),
     κ's effective sample size 48 to 199, about 32 leapfrog steps a draw; the default shell had no

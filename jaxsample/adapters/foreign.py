@@ -79,7 +79,8 @@ class DistributionSampler(Sampler):
 
     def __init__(self, distribution, *, measure: str | None = None, domain=None):
         if isinstance(distribution, Sampler):
-            raise ValueError("from_distribution: parameter 'distribution' is already a jaxsample sampler; use it as it is")
+            raise ValueError("from_distribution: parameter 'distribution' is already a jaxsample sampler; "
+                             "use it as it is")
         for method in ("sample", "log_prob"):
             if not callable(getattr(distribution, method, None)):
                 raise TypeError(f"from_distribution: parameter 'distribution' must have a `{method}` method "
@@ -89,7 +90,8 @@ class DistributionSampler(Sampler):
             raise ValueError(f"from_distribution: parameter 'distribution' must be one distribution (batch_shape ()); "
                              f"got batch_shape {batch}: wrap each member, or jax.vmap over them")
         if measure is not None and not isinstance(measure, str):
-            raise TypeError(f"from_distribution: parameter 'measure' must be a string such as 'solid angle'; got {measure!r}")
+            raise TypeError("from_distribution: parameter 'measure' must be a string such as 'solid angle'; "
+                            f"got {measure!r}")
         self.distribution = distribution
         self.takes_seed = _takes_seed(distribution)
         self.stated_measure = measure

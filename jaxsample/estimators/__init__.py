@@ -2,7 +2,8 @@
 streaming engine (`engine.run_stream`: constant memory, counter-based uniforms, jit/vmap/grad and a
 device mesh); the result type (`result.Estimate`); the plain estimator (`plain`); MIS (`mis`) and
 variance reduction (`variance_reduction`); gradients (`gradients`), gradients with their standard
-errors (`gradient_errors`), estimates to a requested accuracy (`until`), with a guaranteed error bound from lattices and nets (`guaranteed`) and the diagnostics every
+errors (`gradient_errors`), estimates to a requested accuracy (`until`), with a guaranteed error
+bound from lattices and nets (`guaranteed`) and the diagnostics every
 estimate carries (`diagnostics`)."""
 
 from . import diagnostics, gradients
@@ -20,6 +21,7 @@ from .variance_reduction import estimate_antithetic, estimate_control_variate, e
 __all__ = [
     "Estimate", "estimate", "integrand_values", "run_stream", "DEFAULT_CHUNK_SIZE", "estimate_mis",
     "estimate_ratio", "estimate_antithetic", "estimate_control_variate", "expectation", "expectation_values",
-    "gradients", "estimate_grad", "expectation_grad", "estimate_until", "EstimateUntil", "estimate_guaranteed", "GuaranteedEstimate",
+    "gradients", "estimate_grad", "expectation_grad", "estimate_until", "EstimateUntil", "estimate_guaranteed",
+    "GuaranteedEstimate",
     "diagnostics", "UnreliableEstimateWarning",
 ]

@@ -88,7 +88,8 @@ def _check_samplers_agree(samplers) -> None:
         raise ValueError(f"estimate_mis: parameter 'samplers' must have densities over one measure; got {described}")
 
 
-@compiled_entry("f", "counts", "heuristic", "beta", "uniforms", "mode", "chunk_size", "dtype", "mesh", tuples=("counts",))
+@compiled_entry("f", "counts", "heuristic", "beta", "uniforms", "mode", "chunk_size", "dtype", "mesh",
+                tuples=("counts",))
 def estimate_mis(f: Callable, samplers: Sequence, key: jax.Array, counts: Sequence[int], *,
                  heuristic: str = "balance", beta: float | None = None, uniforms="random",
                  mode: str = "attached", chunk_size: int | None = None, dtype=None, mesh=None) -> Estimate:

@@ -10,14 +10,13 @@ from __future__ import annotations
 from typing import Callable
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .._core.computed_once import stored_once
 from .._core.entry import compiled_entry
 from ..samplers.base import check_uniforms, checked
 from .._core.numerics import safe_div
-from .._core.params import check_choice, default_float_dtype, resolve_float_dtype
+from .._core.params import check_choice, resolve_float_dtype
 from .engine import MANY_OUTPUTS, run_stream
 from .integrand import integrand_layout, layout_of
 from .result import Estimate

@@ -121,7 +121,8 @@ def _refuse_closed_over(closed_consts):
             raise TypeError(_NOT_DIFFERENTIABLE)
 
 
-def _check_tolerances(rtol, atol, owner: str = "estimate_until", what: str = "the standard error") -> tuple[float, float]:
+def _check_tolerances(rtol, atol, owner: str = "estimate_until",
+                      what: str = "the standard error") -> tuple[float, float]:
     if rtol is None and atol is None:
         raise ValueError(f"{owner}: give 'rtol' or 'atol' (a tolerance on {what})")
     numbers = {}
@@ -251,7 +252,9 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
         device = None if mesh is None else jax.lax.axis_index(axes).astype(jnp.uint32)
 
         def step_moments(steps):
-            index = steps.astype(jnp.uint32) if mesh is None else steps.astype(jnp.uint32) * jnp.uint32(devices) + device
+            index = steps.astype(jnp.uint32)
+            if mesh is not None:
+                index = index * jnp.uint32(devices) + device
             m = _chunk(values_fn, source, seed, dims, dtype, offset_at(0, index, chunk, wide), chunk, out_shape,
                        bins, total=None, aligned=chunk)
             return m if mesh is None else combine_devices(m, axes, chunk, step, dtype)

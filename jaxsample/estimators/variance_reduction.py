@@ -27,7 +27,7 @@ import jax.numpy as jnp
 from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from ..samplers.base import check_unbatched, check_uniforms, checked
-from .._core.params import default_float_dtype, resolve_float_dtype
+from .._core.params import resolve_float_dtype
 from .engine import run_stream, stderr_floor
 from .integrand import integrand_layout, require_real_scalar
 from .plain import _detach, broadcast_like, check_mode, packed_values

@@ -138,7 +138,8 @@ def _plots(rows: list[dict], out: Path, dims_rows: list[dict], tiny: bool = Fals
         fig, ax = plt.subplots(figsize=(6, 4))
         budget = max(r["budget"] for r in dims_rows)
         for method in dict.fromkeys(r["method"] for r in dims_rows):
-            pts = sorted((r["d"], max(r["error"], 1e-12)) for r in dims_rows if r["method"] == method and r["budget"] == budget)
+            pts = sorted((r["d"], max(r["error"], 1e-12)) for r in dims_rows
+                         if r["method"] == method and r["budget"] == budget)
             ax.semilogy(*zip(*pts), "o-", label=method)
         ax.set(xlabel="dimension d", ylabel="|error|", title=f"Error at ≈{budget} evaluations")
         ax.legend(fontsize=7)

@@ -46,8 +46,9 @@ def gradient_table(quick: bool = True, progress=print) -> list[dict]:
 
 def accuracy_table(quick: bool = True, progress=print) -> list[dict]:
     cases = {"∫cos³ over H², uniform": (lambda w: w[2] ** 3, js.UniformHemisphere(), np.pi / 2, "random"),
-             "∫cos³ over H², cosine (inversion) + Sobol'": (lambda w: w[2] ** 3, js.CosineHemisphere(method="inversion"),
-                                                             np.pi / 2, "sobol")}
+             "∫cos³ over H², cosine (inversion) + Sobol'": (lambda w: w[2] ** 3,
+                                                             js.CosineHemisphere(method="inversion"), np.pi / 2,
+                                                             "sobol")}
     rows = []
     for name, (f, sampler, exact, uniforms) in cases.items():
         for rtol in ((1e-2, 1e-3) if quick else (1e-2, 1e-3, 1e-4)):
@@ -55,14 +56,16 @@ def accuracy_table(quick: bool = True, progress=print) -> list[dict]:
             result = jax.jit(lambda key, f=f, s=sampler, r=rtol, u=uniforms: js.estimate_until(
                 f, s, key, rtol=r, max_n=1 << 26, chunk_size=1 << 14, uniforms=u))(jax.random.key(9))
             mean = float(result.mean)
-            rows.append({"integrand": name, "requested_rtol": rtol, "achieved_stderr_rel": float(result.stderr) / abs(mean),
+            rows.append({"integrand": name, "requested_rtol": rtol,
+                         "achieved_stderr_rel": float(result.stderr) / abs(mean),
                          "actual_error_rel": abs(mean - exact) / exact, "n_used": int(result.n_used),
                          "converged": bool(result.converged)})
     return rows
 
 
 def markdown(gradient_rows: list[dict], accuracy_rows: list[dict]) -> str:
-    out = ["| n, k | estimator | gradient ± stderr | exact | z | per-sample variance | ns/sample | 1/(variance × time) |",
+    out = ["| n, k | estimator | gradient ± stderr | exact | z | per-sample variance | ns/sample "
+           "| 1/(variance × time) |",
            "|---|---|---|---|---|---|---|---|"]
     for r in gradient_rows:
         out.append(f"| {r['exponent']:g}, {r['power']} | {r['estimator']} | {r['gradient']:.5g} ± {r['stderr']:.2g} | "

@@ -83,7 +83,8 @@ def hard_case_table() -> list[dict]:
 
 
 def markdown_table(rows) -> str:
-    out = ["| sampler | parameter | value | non-finite values | non-finite gradients | worst pdf rel. error (f32 vs f64) | worst sample error (abs.; rel. above 1) |",
+    out = ["| sampler | parameter | value | non-finite values | non-finite gradients "
+           "| worst pdf rel. error (f32 vs f64) | worst sample error (abs.; rel. above 1) |",
            "|---|---|---|---|---|---|---|"]
     out += [f"| {r['sampler']} | {r['parameter']} | {r['value']:g} | {r['non_finite_values']} | "
             f"{r['non_finite_gradients']} | {r['worst_pdf_rel_error']:.2e} | {r['worst_sample_error']:.2e} |"

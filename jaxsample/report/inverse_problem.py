@@ -479,26 +479,33 @@ def markdown_summary(result) -> str:
              f"start: exponent {START_EXPONENT:g}, albedo {START_ALBEDO:g}, light angles {START_LIGHT_ANGLES}"]
     for f in result["fits"]:
         lines.append(f"{f['strategy']:>5}, {f['mode']:>8}: exponent {f['exponent']:.3f} (rel. error "
-                     f"{f['exponent_rel_error']:.2%}), albedo {f['albedo']:.4f} (rel. error {f['albedo_rel_error']:.2%}), "
-                     f"light centre off by {f['light_position_error']:.4f} (from {f['initial_light_position_error']:.3f}), "
+                     f"{f['exponent_rel_error']:.2%}), albedo {f['albedo']:.4f} "
+                     f"(rel. error {f['albedo_rel_error']:.2%}), "
+                     f"light centre off by {f['light_position_error']:.4f} "
+                     f"(from {f['initial_light_position_error']:.3f}), "
                      f"loss {f['initial_loss']:.3e} -> {f['final_loss']:.3e} in {f['iterations']} iterations")
     g = result["light_position_gradient"]
     lines.append(f"dL_o/d(light centre) at L_o = {g['radiance']:.5f}, {g['samples']} evaluations each (shade_grad):")
-    lines.append(f"  {'reference (finite differences)':>30}: " + ", ".join(f"{v:+.5f}" for v in g["finite_difference_reference"]))
+    lines.append(f"  {'reference (finite differences)':>30}: "
+                 + ", ".join(f"{v:+.5f}" for v in g["finite_difference_reference"]))
     for name, row in g["estimates"].items():
-        lines.append(f"  {name:>30}: " + ", ".join(f"{v:+.5f} ± {e:.5f}" for v, e in zip(row["gradient"], row["stderr"]))
+        lines.append(f"  {name:>30}: "
+                     + ", ".join(f"{v:+.5f} ± {e:.5f}" for v, e in zip(row["gradient"], row["stderr"]))
                      + "   z: " + ", ".join(f"{z:+.1f}" for z in row["z"]))
     r = result.get("roughness_fit")
     if r:
-        lines.append(f"roughness fit (GGX gold conductor, RGB, under a quad light, {r['strategy']}, {r['mode']}): α {r['alpha']:.4f} "
+        lines.append(f"roughness fit (GGX gold conductor, RGB, under a quad light, {r['strategy']}, "
+                     f"{r['mode']}): α {r['alpha']:.4f} "
                      f"(truth {TRUE_ROUGHNESS:g}, start {START_ROUGHNESS:g}, rel. error {r['alpha_rel_error']:.2%}), "
                      f"loss {r['initial_loss']:.3e} -> {r['final_loss']:.3e} in {r['iterations']} iterations of "
                      f"{r['samples_per_estimate']} evaluations per view")
     z = result.get("conductor_quad_z")
     if z:
-        lines.append("GGX gold conductor (RGB) under a quad light, shade's default strategy (mis, attached) against central "
-                     "differences of the float64 reference, z = (estimate − reference)/stderr per configuration and channel:")
-        lines.append(f"  {'configuration':>13}  {'value':>6}  " + "  ".join(f"{name:>9}" for name in CONDUCTOR_QUAD_PARAMETERS))
+        lines.append("GGX gold conductor (RGB) under a quad light, shade's default strategy (mis, attached) "
+                     "against central differences of the float64 reference, z = (estimate − reference)/stderr "
+                     "per configuration and channel:")
+        lines.append(f"  {'configuration':>13}  {'value':>6}  "
+                     + "  ".join(f"{name:>9}" for name in CONDUCTOR_QUAD_PARAMETERS))
         for i, (zv, zg) in enumerate(zip(z["z_value"], z["z_gradient"])):
             for channel, v, g in zip(CHANNELS, zv, zg):
                 lines.append(f"  {f'{i} {channel}':>13}  {v:+6.2f}  " + "  ".join(f"{x:+9.2f}" for x in g))

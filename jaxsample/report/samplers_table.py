@@ -25,7 +25,8 @@ def cases():
     z3 = lambda w: jnp.maximum(w[2], 0.0) ** 3
     return [
         ("UniformSphere", js.UniformSphere(), lambda w: w[2] ** 2, 4 * np.pi / 3, "∫_S² cos²"),
-        ("UniformSphere(rejection)", js.UniformSphere(method="rejection"), lambda w: w[2] ** 2, 4 * np.pi / 3, "∫_S² cos²"),
+        ("UniformSphere(rejection)", js.UniformSphere(method="rejection"), lambda w: w[2] ** 2, 4 * np.pi / 3,
+         "∫_S² cos²"),
         ("UniformHemisphere", js.UniformHemisphere(), z3, np.pi / 2, "∫_H² cos³"),
         ("CosineHemisphere(malley)", js.CosineHemisphere(), z3, np.pi / 2, "∫_H² cos³"),
         ("CosineHemisphere(inversion)", js.CosineHemisphere(method="inversion"), z3, np.pi / 2, "∫_H² cos³"),
@@ -81,7 +82,8 @@ def sampler_table(n: int = 1 << 20, progress=print, timing_n: int = 1 << 20, onl
 
 
 def markdown_table(rows) -> str:
-    out = ["| sampler | ∫pdf − 1 | integral | estimate ± stderr | exact | z (bias / stderr ⊕ 4 ulp) | ms per 10⁶ samples |",
+    out = ["| sampler | ∫pdf − 1 | integral | estimate ± stderr | exact | z (bias / stderr ⊕ 4 ulp) "
+           "| ms per 10⁶ samples |",
            "|---|---|---|---|---|---|---|"]
     for r in rows:
         out.append(f"| {r['sampler']} | {r['normalization_error']:+.1e} | {r['integral']} | "

@@ -65,7 +65,8 @@ TRIANGLES = [
     ((0, 0, 0), _UP, (0.2, 0.2, 1.0), 50.0, 0.8, None, None, None, 50.0),
     ((0.5, -0.3, 0.0), _UP, (0.0, 0.0, 1.0), 3.0, 0.7, (-1.0, -1.5, 2.0), (2.0, -1.5, 2.0), (0.5, 1.5, 2.0), 1.0),
     ((0, 0, 0), _UP, (0.9, 0.3, 0.2), 300.0, 0.8, None, None, None, 3.0),
-    ((0, 0, 0), (-0.4, 0.0, 0.92), (0.0, 0.0, 1.0), 8.0, 0.9, (-1.8, -0.5, 0.2), (-1.8, 0.5, 0.2), (-1.9, 0.0, 1.0), 2.0),
+    ((0, 0, 0), (-0.4, 0.0, 0.92), (0.0, 0.0, 1.0), 8.0, 0.9,
+     (-1.8, -0.5, 0.2), (-1.8, 0.5, 0.2), (-1.9, 0.0, 1.0), 2.0),
 ]
 
 
@@ -81,7 +82,8 @@ def _triangle_on_lobe(point, normal, wo, distance, size, offset):
     axis = centre - np.asarray(point, float)
     axis /= np.linalg.norm(axis)
     helper = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(axis, helper); e1 /= np.linalg.norm(e1)
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
     e2 = np.cross(axis, e1)
     angles = np.array([0.3, 2.4, 4.3])
     return [centre + size * (np.cos(t) * e1 + np.sin(t) * e2) for t in angles]
@@ -231,7 +233,8 @@ def z_table(n=4096, seed=23, progress=print, quick=False):
                     continue
                 if quick and not boundary and strategy == "light":
                     continue
-                progress(f"  shade gradients: {kind} light, {strategy}, {mode}, boundary term {'on' if boundary else 'off'}")
+                progress(f"  shade gradients: {kind} light, {strategy}, {mode}, "
+                         f"boundary term {'on' if boundary else 'off'}")
                 z = z_scores(kind, strategy, mode, n, seed, boundary)
                 worst = np.unravel_index(int(np.argmax(np.abs(z))), z.shape)
                 rows.append({"light": kind, "strategy": strategy, "mode": mode,
@@ -326,10 +329,12 @@ def markdown(z_rows, cost_rows, value_rows=()) -> str:
     lines += ["", "| light | strategy (attached) | ns / gradient sample | without the term | time ratio | "
               "variance ratio (median) | variance x time ratio |", "|---|---|---|---|---|---|---|"]
     for r in cost_rows:
-        lines.append(f"| {r['light']} | {r['strategy']} | {r['ns_per_gradient_sample']:.0f} | {r['ns_without_term']:.0f} | "
-                     f"{r['time_ratio']:.2f} | {r['median_variance_ratio']:.2f} | {r['median_variance_x_time_ratio']:.2f} |")
+        lines.append(f"| {r['light']} | {r['strategy']} | {r['ns_per_gradient_sample']:.0f} "
+                     f"| {r['ns_without_term']:.0f} | {r['time_ratio']:.2f} | {r['median_variance_ratio']:.2f} "
+                     f"| {r['median_variance_x_time_ratio']:.2f} |")
     if value_rows:
-        lines += ["", "| light | strategy (value only) | ns / evaluation, term in the program | term left out | ratio |",
+        lines += ["",
+                  "| light | strategy (value only) | ns / evaluation, term in the program | term left out | ratio |",
                   "|---|---|---|---|---|"]
         for r in value_rows:
             lines.append(f"| {r['light']} | {r['strategy']} | {r['ns_with_term']:.1f} | {r['ns_without_term']:.1f} | "
@@ -342,7 +347,8 @@ def main(argv=None):
     import json
     import os
 
-    parser = argparse.ArgumentParser(description="shade's gradients against the reference, and the boundary term's cost")
+    parser = argparse.ArgumentParser(
+        description="shade's gradients against the reference, and the boundary term's cost")
     parser.add_argument("--quick", action="store_true", help="without the boundary term: attached mis and brdf only")
     parser.add_argument("--out", default=None, help="directory for shade_gradients.json")
     args = parser.parse_args(argv)

@@ -35,7 +35,8 @@ from .triangle import UniformTriangle
 from .vmf import VonMisesFisher
 
 __all__ = [
-    "Sampler", "Pytree", "parameter", "static_field", "point_method", "UniformSphere", "UniformHemisphere", "CosineHemisphere", "PhongLobe", "UniformCone",
+    "Sampler", "Pytree", "parameter", "static_field", "point_method", "UniformSphere", "UniformHemisphere",
+    "CosineHemisphere", "PhongLobe", "UniformCone",
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",

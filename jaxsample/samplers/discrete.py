@@ -252,7 +252,8 @@ class Discrete(Sampler):
             if pmf is None:
                 raise ValueError("Discrete: method 'alias' needs concrete 'weights' (the table is built "
                                  "in NumPy); build it outside jit, or use method='cdf' with traced weights")
-            probability, alias = build_alias_table(np.asarray(concrete_value(weights)) / np.sum(concrete_value(weights)))
+            concrete = np.asarray(concrete_value(weights))
+            probability, alias = build_alias_table(concrete / np.sum(concrete))
             self.alias_probability = jnp.asarray(probability, self.pmf.dtype)
             self.alias = jnp.asarray(alias, jnp.int32)
 
@@ -278,7 +279,8 @@ class Discrete(Sampler):
         outcome = jnp.where(keep, bucket, self.alias[bucket])
         # Keeping has probability q: the fraction is uniform on [0, q) then, and on [q, 1) otherwise.
         remainder = jnp.where(keep, fraction / jnp.where(keep_probability > 0, keep_probability, 1.0),
-                              (fraction - keep_probability) / jnp.where(keep_probability < 1, 1.0 - keep_probability, 1.0))
+                              (fraction - keep_probability)
+                              / jnp.where(keep_probability < 1, 1.0 - keep_probability, 1.0))
         return outcome, jnp.clip(remainder, 0.0, one_minus_epsilon(u0.dtype))
 
     @point_method

@@ -156,7 +156,8 @@ class Linear(Sampler):
 
     def __post_init__(self):
         a, b = concrete_value(self.a), concrete_value(self.b)
-        if a is not None and b is not None and np.any(np.broadcast_to(a + b, np.broadcast_shapes(a.shape, b.shape)) <= 0):
+        if (a is not None and b is not None
+                and np.any(np.broadcast_to(a + b, np.broadcast_shapes(a.shape, b.shape)) <= 0)):
             raise ValueError("Linear: parameters 'a' and 'b' must not both be 0 (the density would be 0 everywhere)")
 
     def _parameters_valid(self):

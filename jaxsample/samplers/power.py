@@ -48,7 +48,8 @@ class Power(Sampler):
         if method == "max":
             n = concrete_value(self.exponent)
             if n is None or n.ndim != 0 or n != np.floor(n):
-                raise ValueError(f"Power: method 'max' needs a concrete integer 'exponent' in [0, 1e6]; got {exponent!r}")
+                raise ValueError("Power: method 'max' needs a concrete integer 'exponent' in [0, 1e6]; "
+                                 f"got {exponent!r}")
             self.max_exponent = int(n)
 
     def _n(self):

@@ -12,9 +12,9 @@ import numpy as np
 from .base import Sampler, point_method
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.pytree import parameter
-from ._spherical import (SphericalPolygon, add, bilinear_inverse, bilinear_pdf, bilinear_warp, check_vectors, components,
-                         cosine_weight, cross, dot, edge_tolerance, length, normalize, polygon_inside, safe_atan2, scale,
-                         stack, sub, triangle_solid_angle, where)
+from ._spherical import (SphericalPolygon, add, bilinear_inverse, bilinear_pdf, bilinear_warp, check_vectors,
+                         components, cosine_weight, cross, dot, edge_tolerance, length, normalize, polygon_inside,
+                         safe_atan2, scale, stack, sub, triangle_solid_angle, where)
 
 # Vertices whose planar triangle has doubled area below this many float64 epsilons times its
 # longest squared edge are collinear to rounding: degenerate (as for UniformTriangle).

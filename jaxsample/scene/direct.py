@@ -490,8 +490,8 @@ def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh,
             # Forward mode for one parameter: one JVP per point, where reverse mode turns a light's
             # table lookup into a scatter (7.6x jax.grad's time for an environment map's radiance
             # scale, `benchmarks/gradient_cost.py`). For 4 parameters (the report's inverse problem:
-            # a conductor under a quad light, under lax.map) forward ran 0.15 s and compiled in 44 s,
-            # reverse 0.35 s and 35 s: reverse is kept there, for the compile.
+            # a conductor under a quad light, under lax.map) forward runs faster but compiles
+            # slower than reverse: reverse is kept there, for the compile.
             reverse = jax.jacrev if channels else jax.grad
             return (jax.jacfwd if flat.size <= _FORWARD_PARAMETERS else reverse)(value)(flat)
         return jax.vmap(one)(u)

@@ -40,7 +40,8 @@ class EnvironmentMap(Pytree):
     """Radiance L(ω) = values[row, column] of a lat–long map of shape (H, W): row j covers polar
     angles θ in [πj/H, π(j+1)/H] about the world +z axis, column i covers φ in [2πi/W, 2π(i+1)/W].
 
-    The map is at infinity, so the shading point does not matter. Sampling: `PiecewiseConstant2D` over (s, t) = (φ/2π, θ/π) with texel weights
+    The map is at infinity, so the shading point does not matter. Sampling: `PiecewiseConstant2D`
+    over (s, t) = (φ/2π, θ/π) with texel weights
     values · sin θ_row (θ at the row's centre), so that texels are chosen in proportion to their
     power. The map (s, t) -> ω has dω = sin θ dθ dφ = 2π² sin θ ds dt, so the density over solid
     angle is p_ω = p_st / (2π² sin θ) (PBRT-v4 `ImageInfiniteLight`; Pharr et al., *PBR* 3rd ed.,

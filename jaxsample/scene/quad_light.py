@@ -224,4 +224,5 @@ class QuadLight(Pytree):
     def radiance_from(self, point, wi):
         """L where the ray from `point` along `wi` hits the front face, 0 elsewhere."""
         hit, _, _, _ = intersect_parallelogram(self.corner, self.edge_u, self.edge_v, point, wi)
-        return jnp.where(lift(hit & self._front(wi), self.radiance), self.radiance, 0.0).astype(jnp.result_type(wi, float))
+        radiance = jnp.where(lift(hit & self._front(wi), self.radiance), self.radiance, 0.0)
+        return radiance.astype(jnp.result_type(wi, float))

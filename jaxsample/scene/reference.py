@@ -116,7 +116,8 @@ def _light_integral(light, point, frame, wo_local, brdf, panels, order, azimuth)
         cos_light = wi @ normal
         radiance = _face(cos_light < 0, light)
         area_weights = twice_area * (vv * np.outer(w_v, w_w)).ravel()
-        return weighted(jnp.asarray(wi), jnp.asarray(radiance), jnp.asarray(area_weights * np.abs(cos_light) / distance2))
+        return weighted(jnp.asarray(wi), jnp.asarray(radiance),
+                        jnp.asarray(area_weights * np.abs(cos_light) / distance2))
     if isinstance(light, QuadLight):
         corner, edge_u, edge_v = (np.asarray(v, np.float64) for v in (light.corner, light.edge_u, light.edge_v))
         s, w_s = _panels(0.0, 1.0, panels, order)

@@ -27,9 +27,11 @@ class SphereLight(Pytree):
     sampling density and the radiance seen by other strategies agree on one support.
 
     The light is transparent (no occlusion anywhere in this scene layer). A point inside or on the
-    sphere is outside the range: `shade` refuses a concrete one, and a traced one gives NaN. Parameters: `radius` > 0, `radiance` >= 0 (checked when concrete);
+    sphere is outside the range: `shade` refuses a concrete one, and a traced one gives NaN.
+    Parameters: `radius` > 0, `radiance` >= 0 (checked when concrete);
     `center` a 3-vector; `radiance` a scalar or one per channel, shape (C,) (`jaxsample.scene.colour`),
-    and the radiance methods then return (..., C). All three may be traced and differentiated: attached light samples move
+    and the radiance methods then return (..., C). All three may be traced and differentiated:
+    attached light samples move
     with the sphere.
     """
 

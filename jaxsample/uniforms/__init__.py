@@ -8,12 +8,16 @@ replicated point sets `lattice` (a shifted extensible rank-1 lattice with the te
 `index`: sample indices have 64 bits, carried as two uint32 words (`index.Index`).
 """
 
-from .philox import SEED_WORDS, as_key, bits_to_unit, philox4x32, random_bits, seed_from_key
+from .philox import as_key, bits_to_unit, philox4x32, seed_from_key
 from .sobol import MAX_SOBOL_DIMS, owen_scramble, sobol_direction_numbers, sobol_points
-from .sources import Random, Sobol, Source, SourceLike, Stratified, as_source, uniform_block
+from .sources import Random, Sobol, Source, Stratified, as_source, uniform_block
 from .lattice import MAX_LATTICE_DIMS, Lattice, lattice_generating_vector, lattice_points
 from .halton import MAX_HALTON_DIMS, Halton, halton_points, halton_primes
 from .lhs import LatinHypercube
+
+# Attributes outside `__all__`, re-exported explicitly (`name as name`).
+from .philox import SEED_WORDS as SEED_WORDS, random_bits as random_bits
+from .sources import SourceLike as SourceLike
 
 __all__ = [
     "Random", "Stratified", "Sobol", "Source", "as_key", "as_source", "seed_from_key", "uniform_block",

@@ -47,11 +47,11 @@ calls permute each lane's digits to the same integer, so every call gives the sa
 nested permutations depend on the whole prefix, so only the leading run (whose prefixes are its
 own digits) can be a table; the positions after it are hashed per lane.
 
-Cost (`jaxsample.report.paths.quasi_random(2**22, 7)`, the "point sets" rows of
-`python -m jaxsample.report.paths`: `estimate` of a 2-d cosine integral and of sum x^2 over a 3-d
-and an 8-d `UniformBox`, medians of 7 interleaved runs, quiet 2-core CPU, 2026-12-03): "permutation" 0.95x, 1.11x and 1.39x `Random`
-per point (was 1.6x, 2.1x and 3.5x digit by digit); "owen" 3.3x, 4.8x and 6.4x (was 4.1x, 5.5x
-and 7.7x): a 32-bit hash and two multiply-highs per digit after the leading run.
+Cost: the "point sets" rows of `python -m jaxsample.report.paths` (`quasi_random`: `estimate` of a
+2-d cosine integral and of sum x^2 over a 3-d and an 8-d `UniformBox`) time both scrambles against
+`Random` (`benchmarks/results/point-sets-paths-cpu-2core-2026-12-05.md`). The leading run's table is
+cheaper than permuting digit by digit; "owen" adds a 32-bit hash and two multiply-highs per digit
+after the leading run.
 
 Replicates: global index g is point g div R of replicate g mod R (the `Source` convention), each
 replicate with independent permutations, so the spread of the R replicate means is the standard
@@ -212,7 +212,7 @@ def _digits(point: Index, base: int, count: int):
     if point.hi is None:
         # Each digit straight from the index, (i // b^k) % b, and each prefix as i % b^k: no value
         # is shared along a chain of divisions, so XLA fuses every digit into its consumer instead
-        # of writing the digits to memory (a shared chain became one multi-output fusion).
+        # of writing the digits to memory (a shared chain becomes one multi-output fusion).
         i = point.lo
         for k in range(count):
             power = base ** k
@@ -465,10 +465,9 @@ class Halton(Source):
     def lane_words(self, seed, dims: int):
         """`digit_words` laid out (dims, K + 1, R) for the lanes' own reads: each (coordinate,
         position) word one contiguous row of R. Read from (R, dims, K + 1) the row is strided,
-        and LLVM ran part of it as a scalar epilogue (Owen Halton, one run of
-        `quasi_random`'s box integrand at 2^22: 4-d 8.0x Random before, 5.8x after; 8-d 10.9x, 7.6x).
-        The tables (`_group_table`, `_owen_table`) keep `digit_words`; fed this layout too (one
-        Philox call), the timings were the same within this machine's noise (2.2-2.4x at 8-d)."""
+        and LLVM runs part of it as a scalar epilogue, which slows Owen Halton's lanes down.
+        The tables (`_group_table`, `_owen_table`) keep `digit_words`: this layout gives them no
+        measurable gain."""
         k_max = max(_digit_count(int(b)) for b in halton_primes(dims)) + 1
         shape = (dims, k_max, self.replicates)
         j, k, r = (jax.lax.broadcasted_iota(jnp.uint32, shape, axis) for axis in range(3))

@@ -40,14 +40,14 @@ base-2 lattice sequence built by the component-by-component construction of Cool
 ("Constructing embedded lattice rules for multivariate integration", SIAM J. Sci. Comput. 28(6),
 2006) with decaying product weights, for 3600 dimensions. It is optimized for point counts
 2^10 .. 2^20 per replicate. Why this one (`benchmarks/lattice_vectors.py`, results in
-`benchmarks/results/lattice-vectors-cpu-2core-2026-12-05.md`): the order-2-weight vector used
-before (lattice-32001-1024-1048576.3600, z = 1, 182667, 469891, ...) has the short dual vector
+`benchmarks/results/lattice-vectors-cpu-2core-2026-12-05.md`): Kuo's order-2-weight vector
+lattice-32001-1024-1048576.3600 (z = 1, 182667, 469891, ...) has the short dual vector
 h = (-1, -11, -2) (h.z = -45 2^16: in the dual lattice for every m <= 16, and the shortest one
-for m = 13 .. 16), so a smooth 3-d integrand's error
-stalled near 1e-5 from 2^10 to 2^16 points; this vector's shortest dual vector in the first three
-coordinates has prod max(1, |h_j|) = 96 .. 21788 for m = 12 .. 20, and of Kuo's four 2^20
-vectors it had the smallest RMS error (4 shifts) in 14 of the 24 (d, m) cells measured at
-m >= 14 (17 of 36 overall; the old vector in none).
+for m = 13 .. 16), so a smooth 3-d integrand's error stalls near 1e-5 from 2^10 to 2^16 points
+with it; this vector's shortest dual vector in the first three coordinates has
+prod max(1, |h_j|) = 96 .. 21788 for m = 12 .. 20, and of Kuo's four 2^20 vectors it has the
+smallest RMS error (4 shifts) in 14 of the 24 (d, m) cells of that file at m >= 14 (17 of 36
+overall; lattice-32001 in none).
 Every entry is odd, so for any 2^m points (m <= 32) each one-dimensional
 projection is the full grid {k / 2^m}; beyond 2^20 points (and below 2^10) the rule is still a
 valid lattice with that property, just not one the construction optimized. Beyond 2^32 points

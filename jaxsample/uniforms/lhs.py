@@ -12,7 +12,8 @@ smaller constant (Stein 1987; Owen 1992).
 
 Counter based. pi_(r,j)(p) is computed from p alone: a keyed bijection of the k-bit integers
 (2^k the power of two at or above m) by two rounds of x ^= key, x *= odd key, x ^= x >> ceil(k/2),
-x += key, x *= odd key, x ^= x >> ceil(k/2), all mod 2^k (each step a bijection of [0, 2^k)), then cycle walking (Black & Rogaway
+x += key, x *= odd key, x ^= x >> ceil(k/2), all mod 2^k (each step a bijection of [0, 2^k)), then
+cycle walking (Black & Rogaway
 2002; Kensler 2013, "Correlated multi-jittered sampling", uses the same scheme): apply it again
 until the value falls below m. Cycle walking restricts a bijection of [0, 2^k) to one of
 [0, m); since m > 2^(k-1), fewer than two steps are needed on average (a `lax.while_loop`, no
@@ -20,7 +21,8 @@ step at all when m is a power of two). The keys are Philox words per (replicate,
 jitter the 32-bit hash `_mix32` (lowbias32) of the permuted stratum xor another such word, a
 uniform 32-bit word per (replicate, coordinate, stratum), hence per point: point g coordinate j
 depends only on the key, j, g and m. (The stratum and the jitter's word are independent draws in
-distribution, the hash of distinct strata being distinct words.) The permutations are pseudo-random, not uniformly random over all m! orders: the
+distribution, the hash of distinct strata being distinct words.) The permutations are pseudo-random,
+not uniformly random over all m! orders: the
 tests check the strata, uniformity and independence across coordinates and replicates.
 
 Floats: in float64 every coordinate lies in its stratum. In float32, cell + jitter is kept below
@@ -108,8 +110,9 @@ class LatinHypercube(Source):
     def lanes(self, seed, offset, count, dims, dtype=jnp.float32, total=None, aligned=False):
         m = self._per_replicate(total)
         layout = Layout(offset, count, self.replicates, aligned)
-        # (dims, R): each coordinate's words one contiguous row (read as columns of (R, dims), 3-d
-        # and 4-d ran at 2.0-2.1x Random, 2-d at 0.96x: quasi_random, n = 2^22).
+        # (dims, R): each coordinate's words one contiguous row (read as columns of (R, dims), the
+        # 3-d and 4-d programs vectorize worse and run about twice as slow as Random:
+        # benchmarks/results/point-sets-paths-cpu-2core-2026-12-05.md).
         words = [replicate_words(seed, self.replicates, dims, STREAM_LHS, w, by_column=True) for w in range(2)]
         top = np.nextafter(np.array(1.0, dtype), np.array(0.0, dtype))
         p = layout.full(layout.point.lo)

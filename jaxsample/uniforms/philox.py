@@ -10,7 +10,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.keys import SEED_WORDS, as_key, seed_from_key
+# The key rule, exported here (explicit re-exports).
+from .._core.keys import SEED_WORDS as SEED_WORDS, as_key as as_key, seed_from_key as seed_from_key
 from .index import Index, as_index, floordiv, index_range
 
 # Philox4x32 constants (Salmon et al. 2011, section 5): multipliers and Weyl key increments.

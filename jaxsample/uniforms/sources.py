@@ -63,7 +63,8 @@ class Source(Pytree):
     faster path that gives the same points.
 
     Offsets: a Python or NumPy integer (any index below 2^64), a uint32 array (a traced offset of
-    a window that stays below 2^32: what the estimators pass for n <= 2^32) or an `index.Index` (two uint32 words: the estimators' offsets for n > 2^32). A
+    a window that stays below 2^32: what the estimators pass for n <= 2^32) or an `index.Index` (two
+    uint32 words: the estimators' offsets for n > 2^32). A
     subclass handles all three by reading them with `index.as_index(offset, count)`.
     """
 
@@ -438,8 +439,9 @@ class Sobol(Source):
         # Laid out (pairs, R), so that each pair's seeds are one contiguous row: as (R, pairs)
         # columns, a pair whose second coordinate is dropped (odd dims) leaves a gap in the
         # strided read, and LLVM then runs half the replicates of the lanes' loop as a scalar
-        # epilogue (measured 3-d: 3.5x Random, 1.26x with rows; benchmarks/paths.py quasi_random).
-        words = self._padded_words(seed, replicate, jnp.arange(pairs, dtype=jnp.uint32)[:, None], high)  # 4 x (pairs, R)
+        # epilogue, which makes the 3-d estimate of `jaxsample.report.paths.quasi_random` several
+        # times slower. The words: 4 x (pairs, R).
+        words = self._padded_words(seed, replicate, jnp.arange(pairs, dtype=jnp.uint32)[:, None], high)
         if self.scramble == "owen":
             i = first.lo + jnp.arange(per, dtype=jnp.uint32)[:, None]            # (per, 1)
             lanes = [c for k in range(pairs) for c in _padded_owen_pair(i, *(w[None, k, :] for w in words[:3]))]

@@ -208,7 +208,7 @@ def test_integer_max_reduction_stays_exact(points):
 
 
 # ------------------------------------------------------------------------------------------------
-# Many outputs per point: the generator and the warp run once, not once per output (issue 25)
+# Many outputs per point: the generator and the warp run once, not once per output
 # ------------------------------------------------------------------------------------------------
 
 def test_stored_once_is_the_identity_for_values_vmap_and_derivatives():
@@ -270,7 +270,7 @@ def test_a_differentiated_estimate_runs_the_generator_once_per_pass_not_once_per
     the uniforms stored once, so the Philox multiplier 0xD2511F53 appears in at most 6
     computations of the optimized HLO (measured: 5, of which 3 loops run the whole generator:
     the forward's and the backward's 2 packed pairs; 11 with the uniforms not stored, and the
-    gradient ran 1.5x slower: benchmarks/compile_and_outputs.py)."""
+    gradient runs slower: benchmarks/compile_and_outputs.py)."""
     import jaxsample as js
 
     axis = jnp.array([0.3, 0.2, 0.9327379])
@@ -325,11 +325,11 @@ def test_forward_mode_through_an_estimate_ignores_the_parameters_it_does_not_mov
 def test_a_one_group_estimate_computes_its_points_in_one_loop_whatever_the_integrand_combines():
     """A source with one group of lanes per chunk (Sobol', the lattice, Halton, Random past 2
     dimensions) hands the chunk's values to the replicate sums with no pair to pack. Without a
-    boundary, XLA's CPU reduction fusion took the integrand's last elementwise ops (here the sum
-    of x, y and z) into the sums and left each operand a loop of its own, each re-running the
-    Sobol' scramble and the warp: the Laine–Karras multiplier 0x6C50B47C sat in 3 computations
-    and the estimate ran 3-4x slower than with Philox (`paths.sobol_every_sampler`). The values
-    are stored once (`computed_once(..., alone=True)`): one computation."""
+    boundary, XLA's CPU reduction fusion takes the integrand's last elementwise ops (here the sum
+    of x, y and z) into the sums and leaves each operand a loop of its own, each re-running the
+    Sobol' scramble and the warp: the Laine–Karras multiplier 0x6C50B47C sits in 3 computations
+    and the estimate runs several times slower than with Philox (`paths.sobol_every_sampler`).
+    The values are stored once (`computed_once(..., alone=True)`): one computation."""
     import jaxsample as js
 
     f = lambda w: w[0] + w[1] + w[2]

@@ -1,4 +1,4 @@
-"""The per-point evaluation on coordinate lanes (issue 12): same values and gradients as vmap,
+"""The per-point evaluation on coordinate lanes: same values and gradients as vmap,
 whatever shape of program; the sources' lane layouts give the points of `block`; the engine's
 compiled program has the fused shape that made it fast (a structural check, no clock)."""
 
@@ -44,8 +44,8 @@ PROGRAMS = {
     "wide": lambda x: jnp.sum(jnp.sin(jnp.outer(jnp.linspace(0.0, 1.0, 40), x)), axis=0),  # > MAX_LANES
     "stop_gradient": lambda x: jax.lax.stop_gradient(x) * x,
     # A batched contraction (every batch member its own matrix), a transpose of three axes (its
-    # inverse permutation is another, wrong, one) and a join along axis 1: the programs of a fresh
-    # audit's surviving breaks of these rules (issue 30).
+    # inverse permutation is another, wrong, one) and a join along axis 1: programs that break
+    # these rules where a lane rule gets them wrong.
     "einsum_batched": lambda x: jnp.einsum("bij,bj->bi", jnp.stack([jnp.outer(x, A), 2.0 * jnp.outer(A, x)]),
                                            jnp.stack([x, x[::-1] + 1.0])).reshape(-1),
     "transpose_3_axes": lambda x: jnp.transpose(x[:2, None, None] * A[None, :, None] * x[None, None, :],
@@ -103,8 +103,8 @@ def test_lane_map_on_two_dimensional_lanes(points):
 
 def test_a_small_network_integrand_stays_a_matrix_product(points):
     """An integrand with a 64-wide hidden layer (a neural control variate, say): its 64x64 matrix
-    product is not written out as 4096 lane multiply-adds (which took 70 s to compile and ran 8x
-    slower than vmap); it stays one XLA dot, so the program stays small."""
+    product is not written out as 4096 lane multiply-adds (slow to compile, and slower to run than
+    vmap); it stays one XLA dot, so the program stays small."""
     k1, k2, k3 = jax.random.split(jax.random.key(9), 3)
     w1 = jax.random.normal(k1, (64, 3))
     w2 = jax.random.normal(k2, (64, 64)) / 8
@@ -120,10 +120,10 @@ def _compiled(fn):
 
 
 def test_engine_fuses_a_dot_product_integrand():
-    """The defect this module fixes, checked on the compiled program: with `x @ a` the engine's
-    optimized HLO had a separate `dot` op and computed Philox once per consumer (the multiplier
-    0xD2511F53 = 3528531795 appeared 6 times, 3 with explicit components). Now no dot remains and
-    the generator's rounds appear as often as for explicit components."""
+    """The defect the lanes prevent, checked on the compiled program: evaluated by `vmap`, `x @ a`
+    leaves a separate `dot` op in the optimized HLO, and Philox is computed once per consumer (its
+    multiplier 0xD2511F53 = 3528531795 appears more often than with explicit components). On the
+    lanes no dot remains and the generator's rounds appear as often as for explicit components."""
     n = 1 << 16
 
     def program(f):

@@ -1,5 +1,5 @@
 """A property-based differential test of the lane interpreter (`jaxsample._core.lanes`) against
-`jax.vmap` (issue 30).
+`jax.vmap`.
 
 Hypothesis writes per-point programs from a grammar of the operations integrands are written
 with: dot products, `einsum` with batch and free indices (both operands per-point, or one shared),
@@ -22,7 +22,8 @@ differences of float32 sums, at most a few ulps of the largest term).
 CI runs a fixed, derandomized set of `JAXSAMPLE_LANES_EXAMPLES` programs per step of the
 grammar (default 2: each step appears in two programs, among random others), so the suite is
 deterministic; set the variable higher, and `JAXSAMPLE_LANES_RANDOM=1` for fresh
-programs (without hypothesis' shrinking, which takes minutes on these), to search more. The programs run eagerly (no `jit`): the interpreter's
+programs (without hypothesis' shrinking, which takes minutes on these), to search more. The programs
+run eagerly (no `jit`): the interpreter's
 rules are Python that emits the same JAX operations either way, and eager evaluation spares a
 compilation per program and per dtype. A failure prints the program (hypothesis' falsifying
 example: the list of steps).

@@ -193,7 +193,8 @@ def test_mis_weighs_a_foreign_density_against_a_jaxsample_one():
 
 def test_the_checks_run_on_a_foreign_distribution_given_its_domain():
     # FFR 1e-6 (chi2_test at its default significance).
-    sampler = adapters.from_distribution(nd.Normal(0.0, 1.0), measure="length", domain=Interval(-np.inf, np.inf, quadrature_low=-12.0, quadrature_high=12.0))
+    domain = Interval(-np.inf, np.inf, quadrature_low=-12.0, quadrature_high=12.0)
+    sampler = adapters.from_distribution(nd.Normal(0.0, 1.0), measure="length", domain=domain)
     result = js.testing.chi2_test(sampler, key(11), n_samples=100_000, n_cells=32, n_pilot=16_384)
     assert result.passed
     with pytest.raises(ValueError, match="domain="):

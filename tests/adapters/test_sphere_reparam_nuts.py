@@ -101,7 +101,7 @@ def test_nuts_on_a_concentrated_direction_with_unknown_kappa_does_not_diverge():
 
     Measured over keys 0 to 5 (under the suite's XLA flags, and under XLA's defaults): the shell
     had no divergences, κ's effective sample size 148 to 173 (121 to 211) and 5.5 to 6.7 (5.2 to
-    6.4) steps a draw; z ~ N(0, I) (`radius_scale=None`, the law before) had 0 to 2 (0 to 55)
+    6.4) steps a draw; z ~ N(0, I) (`radius_scale=None`) had 0 to 2 (0 to 55)
     divergences, effective sample size 77 to 122 (11 to 133) and 19 to 44 (9 to 39) steps a draw,
     every run failing at least one of the three bounds. At key 0 here: the shell 0 divergences, 160,
     5.6 steps; N(0, I) 1 divergence, 104, 40 steps."""

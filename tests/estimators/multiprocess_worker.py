@@ -44,7 +44,8 @@ def results(mesh):
 
     out = {}
     for uniforms in ("random", "sobol"):
-        est = jax.jit(lambda k, u=uniforms: js.estimate(cap, js.CosineHemisphere(), k, N, uniforms=u, mesh=mesh))(keys[0])
+        est = jax.jit(lambda k, u=uniforms: js.estimate(cap, js.CosineHemisphere(), k, N, uniforms=u,
+                                                         mesh=mesh))(keys[0])
         out[f"estimate/{uniforms}"] = [float(est.mean), float(est.stderr)]
         est = jax.jit(lambda k, u=uniforms: js.estimate(lambda x: jnp.sum(x * x), rejection, k, N, uniforms=u,
                                                          mesh=mesh))(keys[1])

@@ -1,4 +1,4 @@
-"""Boundary terms (issue 23): gradients of integrals whose parameters move an edge of the integrand.
+"""Boundary terms: gradients of integrals whose parameters move an edge of the integrand.
 
 References are exact (solid angles, their derivatives) or finite differences of float64 quadrature
 written here independently of the library's boundary sampling. Every test uses fixed keys; where
@@ -155,8 +155,10 @@ def test_spherical_quadrilateral_vertex_gradient_matches_its_fan_of_triangles():
 
     g = js.estimate_grad(make, jnp.asarray(vertices[2], jnp.float32), jax.random.key(12), 1 << 15)
     reference = np.array([_central(lambda t: fan(vertices + t * np.outer(np.eye(4)[2], e)), 0.0) for e in np.eye(3)])
-    np.testing.assert_allclose(float(edges.SphericalPolygon(jnp.asarray(vertices)).solid_angle()), fan(vertices), rtol=1e-5)
-    assert np.all(np.abs(np.asarray(g.mean) - reference) < 5.0 * np.asarray(g.stderr) + 1e-4), (g.mean, g.stderr, reference)
+    np.testing.assert_allclose(float(edges.SphericalPolygon(jnp.asarray(vertices)).solid_angle()), fan(vertices),
+                               rtol=1e-5)
+    assert np.all(np.abs(np.asarray(g.mean) - reference) < 5.0 * np.asarray(g.stderr) + 1e-4), \
+        (g.mean, g.stderr, reference)
 
 
 def test_disk_in_the_plane_centre_and_radius():
@@ -202,7 +204,8 @@ def test_expectation_pathwise_and_score_under_a_moving_lobe():
         return _cap_quadrature(alpha, beta, lambda w: (n + 1) / TWO_PI * np.maximum(w[..., 2], 0) ** n, nodes=64)
 
     def make(p):
-        return edges.masked(edges.Cap.from_angle(_axis(jnp.float32(beta)), p["alpha"]), lambda w: 1.0), js.PhongLobe(p["n"])
+        cap = edges.Cap.from_angle(_axis(jnp.float32(beta)), p["alpha"])
+        return edges.masked(cap, lambda w: 1.0), js.PhongLobe(p["n"])
 
     params = {"alpha": jnp.float32(0.4), "n": jnp.float32(6.0)}
     reference = {"n": _central(lambda n: value(n, 0.4), 6.0), "alpha": _central(lambda a: value(6.0, a), 0.4)}

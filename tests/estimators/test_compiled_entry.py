@@ -120,8 +120,8 @@ def phong_cos3(exponent):
 @pytest.mark.parametrize("baseline", ["leave_one_out", 0.1])
 def test_a_baseline_given_as_text_or_number_compiles_once(baseline):
     """`baseline` is a string ("leave_one_out") or a traced number: the string picks the program
-    (static for that call) and does not send the call op by op, which compiled ~250 small
-    programs and took a second per repeat call."""
+    (static for that call) and does not send the call op by op, which would compile hundreds of
+    small programs and take a second per repeat call."""
     def run(exponent, key):
         return js.expectation_grad(phong_cos3, exponent, key, N, gradient="score", baseline=baseline)
 

@@ -2,7 +2,6 @@
 independent fit and known shapes, each confident-wrong program flagged, honest estimates not,
 the stderr floor, Student-t intervals from replicates, and the warning."""
 
-import math
 import warnings
 
 import jax

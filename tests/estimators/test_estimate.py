@@ -219,7 +219,8 @@ def test_estimate_is_a_pytree_and_vector_valued_f_works():
 @pytest.mark.parametrize("uniforms", ["random", "sobol"])
 def test_non_finite_values_give_inf_or_nan_means_and_unbounded_error_bars(uniforms):
     # Y = f/p per component: +inf on the cap z > 0.9, else 1 | +inf there and -inf below z < 0.1 |
-    # NaN on the cap | 1 everywhere. The compensated sums used to turn an inf into NaN (inf - inf).
+    # NaN on the cap | 1 everywhere. A compensated sum can turn an inf into NaN (inf - inf): this
+    # checks that the sums keep an inf an inf.
     def f(w):
         cap, rim = w[2] > 0.9, w[2] < 0.1
         y = jnp.stack([jnp.where(cap, jnp.inf, 1.0), jnp.where(cap, jnp.inf, jnp.where(rim, -jnp.inf, 1.0)),

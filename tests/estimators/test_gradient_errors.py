@@ -1,4 +1,4 @@
-"""Gradients with error bars (issue 15, part 1): `estimate_grad` and `expectation_grad`.
+"""Gradients with error bars: `estimate_grad` and `expectation_grad`.
 
 References (docs/reference.md): for d/dn E_{p_n}[cos^k θ] = k/(n+k+1)² under the Phong lobe, the
 per-sample variances at n = 5, k = 2 are 3.5677e-4 (pathwise) and 7.6901e-3 (score). The
@@ -18,8 +18,8 @@ EXPONENT, POWER = 5.0, 2
 EXACT_GRADIENT = POWER / (EXPONENT + POWER + 1.0) ** 2
 _M = EXPONENT + 1.0
 EXACT_VARIANCE = {"pathwise": 3.5677e-4, "score": 7.6901e-3,
-                  "measure_valued": (_M / (_M + 2 * POWER)) * (1 - 2 * _M / (_M + POWER) + _M / (_M + 2 * POWER)) / _M ** 2
-                  - (POWER / (_M + POWER) ** 2) ** 2}
+                  "measure_valued": (_M / (_M + 2 * POWER)) * (1 - 2 * _M / (_M + POWER) + _M / (_M + 2 * POWER))
+                  / _M ** 2 - (POWER / (_M + POWER) ** 2) ** 2}
 
 
 def phong_cos2(exponent):
@@ -32,7 +32,8 @@ def test_expectation_grad_is_the_gradient_of_the_same_estimate(gradient):
     key = jax.random.key(0)
     n = 1 << 14
     est = js.expectation_grad(phong_cos2, EXPONENT, jax.random.clone(key), n, gradient=gradient)
-    by_grad = jax.grad(lambda p: js.expectation(*phong_cos2(p), jax.random.clone(key), n, gradient=gradient).mean)(EXPONENT)
+    by_grad = jax.grad(
+        lambda p: js.expectation(*phong_cos2(p), jax.random.clone(key), n, gradient=gradient).mean)(EXPONENT)
     np.testing.assert_allclose(est.mean, by_grad, rtol=2e-5)
     assert est.n == n and np.isfinite(float(est.stderr))
 

@@ -2,13 +2,11 @@
 a stream against the reverse one (`engine._differentiable_stream`).
 
 Run times are measured in `benchmarks/gradient_cost.py`; here the optimized HLO is read, so that a
-change that brings back a cause of the old 10-90x gradients fails: the reverse pass through the
-streaming loop (the loop transposed, the per-point program split into dozens of loops), loop
-invariants hoisted out of the loop into arrays, a boundary term evaluated with the value, or a
-per-point program that leaves the lanes. All deterministic (no false failures).
+change that brings back a cause of gradients many times slower than their value fails: the
+reverse pass through the streaming loop (the loop transposed, the per-point program split into
+dozens of loops), loop invariants hoisted out of the loop into arrays, a boundary term evaluated
+with the value, or a per-point program that leaves the lanes. All deterministic (no false failures).
 """
-
-import re
 
 import jax
 import jax.numpy as jnp
@@ -43,8 +41,8 @@ def _hlo(fn, x):
 def _chunk_arrays_outside_loops(jaxpr, inside=False):
     """Equations that make a chunk-sized array (a per-point value over the lanes) outside every loop:
     loop invariants JAX hoisted out of a loop traced in a derivative rule, which the loop then reads
-    from memory (465 of them before the derivative's loop became a while loop; the gradient of
-    MIS-shaded Phong ran 1.4x slower)."""
+    from memory (hundreds of them when the derivative's loop is not a while loop, which slows the
+    gradient of MIS-shaded Phong down)."""
     found = 0
     for eqn in jaxpr.eqns:
         if not inside and any(getattr(v.aval, "shape", ())[:1] in ((32768,), (65536,)) for v in eqn.outvars):
@@ -78,7 +76,7 @@ def _assert_a_forward_gradient(value, x):
 def test_the_shade_gradient_is_a_forward_pass_of_bounded_size(strategy):
     """jax.grad of `shade` (Phong exponent, a sphere light: the boundary term included) compiles to
     forward loops only: no transposed loop, no chunk-sized arrays made outside the loops, and an
-    optimized HLO at most 3x the value's (the reverse pass through the loop was 8-10x, 2.5 MB)."""
+    optimized HLO at most 3x the value's (a reverse pass through the loop is well over that)."""
     grad_text = _assert_a_forward_gradient(_shade_mean(strategy), jnp.float32(np.log(25.0)))
     assert grad_text.count(" while(") <= 3
 

@@ -1,4 +1,4 @@
-"""Gradients of estimates with respect to sampler parameters (issue 5).
+"""Gradients of estimates with respect to sampler parameters.
 
 Statistical tests compare a gradient estimate with its exact mean, in units of a standard error
 computed from the *exact* variance (docs/reference.md, "Gradients with respect to a sampler

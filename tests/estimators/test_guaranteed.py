@@ -165,7 +165,8 @@ def _spike(x):
     return jnp.exp(-jnp.sum((x - 0.3) ** 2) / (2 * 0.05 ** 2))
 
 
-@pytest.mark.parametrize("case", ["sobol: smooth and step", "lattice: 3-d exponential", "lattice: spike, early disagreement"])
+@pytest.mark.parametrize("case", ["sobol: smooth and step", "lattice: 3-d exponential",
+                                  "lattice: spike, early disagreement"])
 def test_matches_the_rule_written_as_loops(case):
     """The vectorized rule (orderings of every column at once, the replicates' bounds averaged, the
     cone checked in every column and the replicates compared at every m) equals a loop-by-loop
@@ -175,7 +176,8 @@ def test_matches_the_rule_written_as_loops(case):
     lattice case; a spike whose replicates disagree only at the first m (and agree at the last)."""
     (sampler, f, uniforms, source, transform), key, m_min, m_max, atol = {
         "sobol: smooth and step": ((BOX1, lambda x: jnp.stack([jnp.exp(x[0]), (x[0] < 0.3).astype(jnp.float32)]),
-                                    "sobol", U.Sobol(replicates=2, scramble="lms"), G.net_coefficients), 0, 8, 13, 1e-5),
+                                    "sobol", U.Sobol(replicates=2, scramble="lms"), G.net_coefficients),
+                                   0, 8, 13, 1e-5),
         "lattice: 3-d exponential": ((BOX3, _exp3, "lattice", U.Lattice(replicates=2), G.lattice_coefficients),
                                      1, 8, 14, 1e-4),
         "lattice: spike, early disagreement": ((BOX2, _spike, "lattice", U.Lattice(replicates=2),
@@ -230,7 +232,7 @@ def test_rounding_the_mean_widens_the_bound():
 
 def test_float32_results_keep_their_guarantee_at_a_tight_tolerance():
     """At atol 1e-6 the float32 mean's own rounding (about 1e-7 here) is a real part of its error:
-    the returned bound includes it (found by review: the error was 2.1e-7 against a bound of 2.5e-8)."""
+    the returned bound includes it (without it the bound here is about a tenth of the error)."""
     exact = 2 * np.pi * (np.e - 1 / np.e)
     est = js.estimate_guaranteed(lambda w: jnp.exp(w[2]), js.UniformSphere(), jax.random.key(4), max_n=1 << 20,
                                  atol=1e-6, uniforms="sobol")

@@ -1,4 +1,4 @@
-"""Integrands that return pytrees and complex values (issue 14, item 4; `estimators/integrand.py`).
+"""Integrands that return pytrees and complex values (`estimators/integrand.py`).
 
 The rule: every leaf of f's value is averaged on its own and the result has f's structure with an
 `Estimate` at every leaf; a complex leaf's statistics are complex, real part from the real parts

@@ -1,4 +1,4 @@
-"""One estimate over two processes with JAX's distributed runtime (issue 16).
+"""One estimate over two processes with JAX's distributed runtime.
 
 Two processes on this machine (one CPU device each; coordinator on 127.0.0.1 with a free port;
 CPU collectives through gloo) run `tests/multiprocess_worker.py` over the global mesh: `estimate`

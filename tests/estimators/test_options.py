@@ -1,5 +1,5 @@
-"""`chunk_size` takes effect on every public path that accepts it (issue 30: a test per option
-that fails when the option is ignored).
+"""`chunk_size` takes effect on every public path that accepts it: a test per option
+that fails when the option is ignored.
 
 The samples do not depend on the chunking (counter-based streams; tests/estimators/test_estimate.py
 checks that), so values cannot show whether `chunk_size` was honoured. What it controls is the

@@ -94,7 +94,8 @@ def test_interval_coverage_despite_sequential_stopping(case):
     f, sampler, exact = {"cos3-uniform": (COS3, js.UniformHemisphere(), np.pi / 2),
                          "cos-phong2-heavy-tail": (lambda w: w[2], js.PhongLobe(2.0), np.pi)}[case]
     keys = jax.random.split(jax.random.key(11), 1000)
-    r = jax.jit(jax.vmap(lambda k: js.estimate_until(f, sampler, k, rtol=1e-2, max_n=1 << 18, chunk_size=1 << 10)))(keys)
+    r = jax.jit(jax.vmap(
+        lambda k: js.estimate_until(f, sampler, k, rtol=1e-2, max_n=1 << 18, chunk_size=1 << 10)))(keys)
     z = (np.asarray(r.mean, np.float64) - exact) / np.asarray(r.stderr, np.float64)
     assert np.all(np.asarray(r.converged))
     assert 0.92 <= float(np.mean(np.abs(z) <= 1.959963984540054)) <= 0.98

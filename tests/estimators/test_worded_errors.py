@@ -1,5 +1,5 @@
-"""Mistakes a user makes in the first hour, each answered in the library's words (issue 29): the
-error names the parameter and what is allowed, where JAX or Python internals spoke before (an
+"""Mistakes a user makes in the first hour, each answered in the library's words: the error
+names the parameter and what is allowed, where JAX or Python internals would speak otherwise (an
 `int()` of a property, a ZeroDivisionError, "'int' object is not iterable", a broadcasting error,
 float32 behind four warnings, NaN everywhere). Each test raises before anything is compiled,
 except the two that call a sampler (one small program each).

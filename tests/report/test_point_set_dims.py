@@ -58,8 +58,8 @@ def test_a_tiny_study_has_its_columns_and_sobol_beats_random_on_the_smooth_produ
                        progress=lambda _: None)
     assert [(r["name"], r["d"], r["uniforms"]) for r in rows] == [("smooth", 2, "random"), ("smooth", 2, "sobol")]
     for r in rows:
-        for key in ("slope", "slope_stderr", "ns_per_sample", "ns_per_point", "integrand_ns", "times", "extrapolated", "extrapolated_seconds",
-                    "rmse", "target"):
+        for key in ("slope", "slope_stderr", "ns_per_sample", "ns_per_point", "integrand_ns", "times", "extrapolated",
+                    "extrapolated_seconds", "rmse", "target"):
             assert key in r, key
         assert r["ns_per_point"] > 0 and r["integrand_ns"] > 0 and math.isfinite(r["slope"])
         assert math.isclose(r["ns_per_sample"], r["ns_per_point"] + r["integrand_ns"], rel_tol=1e-9)

@@ -66,7 +66,8 @@ class Entry:
     name: str
     make: Callable
     cases: tuple
-    points: np.ndarray          # where pdf and log_pdf (and their derivatives) are checked: in, on and outside the support
+    points: np.ndarray          # where pdf and log_pdf (and their derivatives) are checked: in, on and outside
+                                # the support
     chi2_samples: int = 100_000
     chi2_cells: int = 64
     chi2_pilot: int = 20_000
@@ -261,7 +262,7 @@ def transformed_spherical(low, high):
     return js.Transformed(js.UniformBox(low, high), _sphere_forward, _sphere_inverse, domain=Directions())
 
 
-# Henyey–Greenstein, Gaussians, tent, linear, bilinear (jaxsample issue 24, part 3).
+# Henyey–Greenstein, Gaussians, tent, linear, bilinear.
 
 def henyey_greenstein(g):
     return js.HenyeyGreenstein(g)
@@ -287,7 +288,7 @@ def bilinear(w):
     return js.Bilinear(w)
 
 
-# Microfacet distributions (GGX, Beckmann) and their lobes (jaxsample issue 24, part 1).
+# Microfacet distributions (GGX, Beckmann) and their lobes.
 
 def ggx(alpha_x, alpha_y):
     return js.GGX(alpha_x, alpha_y)
@@ -367,7 +368,7 @@ _MICROFACET_LOBE_CASES = (
     _C((0.3, 0.3, MICROFACET_OBLIQUE), chi2=False), _C((1e-2, 1e-2, (0.0, 0.0, 1.0)), chi2=False),
     _C((0.3, 0.3, MICROFACET_BELOW), chi2=False))
 
-# Solid-angle sampling of spherical triangles and rectangles (jaxsample issue 24, part 2): from a
+# Solid-angle sampling of spherical triangles and rectangles: from a
 # near-hemisphere (the viewer 0.05 from the plane, inside) down to 1e-8 sr, where float32 Arvo and
 # Ureña formulas fail (benchmarks/float32_spherical.py).
 
@@ -457,7 +458,8 @@ ENTRIES = [
                     [0.0, 0.5, 0.0]]),
           inverse=_PLANAR_INVERSE),
     Entry("UniformBox", box, (_C(([-1.0, 0.5], [2.0, 0.75])),),
-          np.array([[-1.0, 0.5], [0.0, 0.6], [2.0, 0.75], [3.0, 0.6], [0.0, 0.0], [0.5, 0.7]]), inverse=_PLANAR_INVERSE),
+          np.array([[-1.0, 0.5], [0.0, 0.6], [2.0, 0.75], [3.0, 0.6], [0.0, 0.0], [0.5, 0.7]]),
+          inverse=_PLANAR_INVERSE),
     # ---- the line (length) ----
     # Parametric 1-D samplers get 10^6 chi-square samples: a rate 2 % off is then rejected with
     # p < 1e-45 for every key tried (at 10^5 it passed for most keys).
@@ -466,11 +468,12 @@ ENTRIES = [
     # Power(1e6) and TruncatedExponential(1e6, 1e-3) put their mass within 1e-5 of an end, which
     # float32 resolves only to 6e-8 (samples quantised to a few dozen values): float64 there.
     Entry("TruncatedExponential", truncated,
-          (*(_C((r, 2.5), chi2=r in (1e-6, 1.0, 1e6)) for r in (1e-6, 1e-2, 1.0, 1e3, 1e6)), _C((1e-6, 3.0), chi2=False),
-           _C((1.0, 1e-6), chi2=False), _C((1e6, 1e-3), x64=True, inverse=False)),
+          (*(_C((r, 2.5), chi2=r in (1e-6, 1.0, 1e6)) for r in (1e-6, 1e-2, 1.0, 1e3, 1e6)),
+           _C((1e-6, 3.0), chi2=False), _C((1.0, 1e-6), chi2=False), _C((1e6, 1e-3), x64=True, inverse=False)),
           np.array([0.0, 1e-7, 0.5, 2.5, 4.0, -1.0]), 1_000_000, inverse=_LINE_INVERSE),
-    Entry("Power", power, (_C((0.0,), chi2=False), _C((0.5,)), _C((1.0,), chi2=False), _C((3.0,), chi2=False), _C((1e3,)),
-                           _C((1e6,), inverse=False, chi2=False, samples=False), _C((1e6,), x64=True, inverse=False)),
+    Entry("Power", power, (_C((0.0,), chi2=False), _C((0.5,)), _C((1.0,), chi2=False), _C((3.0,), chi2=False),
+                           _C((1e3,)), _C((1e6,), inverse=False, chi2=False, samples=False),
+                           _C((1e6,), x64=True, inverse=False)),
           np.array([0.0, 1.0, 0.5, 1e-30, 2.0, -0.5]), 1_000_000, inverse=_LINE_INVERSE,
           # (n+1) x^n at x rounded to the working precision: n ulps relative, 6e-5 at n = 1000 in
           # float32 and 1e-10 at n = 1e6 in float64.
@@ -491,7 +494,8 @@ ENTRIES = [
                                      _C((np.ones(1),), gradients=False),
                                      _C((HUGE_WEIGHTS,), gradients=False)),
           np.array([0, 1, 2, 7, -1, 8], np.int32)),
-    Entry("Discrete-alias", prebuilt, (_C((js.Discrete(WEIGHTS, "alias"),)), _C((js.Discrete(np.array([2.5]), "alias"),), gradients=False),
+    Entry("Discrete-alias", prebuilt, (_C((js.Discrete(WEIGHTS, "alias"),)),
+                                       _C((js.Discrete(np.array([2.5]), "alias"),), gradients=False),
                                        _C((js.Discrete(HUGE_WEIGHTS, "alias"),), gradients=False)),
           np.array([0, 1, 2, 7, -1, 8], np.int32)),
     # ---- generic constructions ----
@@ -519,12 +523,12 @@ ENTRIES = [
           DIRECTION_POINTS, positive_at_edges=False, gradients64=False),
     # (Its gradients are those of the other two mixtures' code with the disks' warps.)
     Entry("Mixture-disks", mixture_of_disks, (_C(([1.0, 0.0],), chi2=False, gradients=False),), DISK_POINTS),
-    # ---- Henyey–Greenstein, Gaussians, tent, linear, bilinear (jaxsample issue 24, part 3) ----
+    # ---- Henyey–Greenstein, Gaussians, tent, linear, bilinear ----
     # g at its float32 hard cases; chi-square at a sharp forward lobe and the sharpest backward
     # one (the warp's factors are formed differently for g < 0).
     Entry("HenyeyGreenstein", henyey_greenstein,
-          (_C((0.0,), chi2=False), _C((1e-4,), chi2=False), _C((-0.5,), chi2=False), _C((0.99,)), _C((-0.99,), chi2=False),
-           _C((1.0 - 1e-4,), chi2=False), _C((-(1.0 - 1e-4),))),
+          (_C((0.0,), chi2=False), _C((1e-4,), chi2=False), _C((-0.5,), chi2=False), _C((0.99,)),
+           _C((-0.99,), chi2=False), _C((1.0 - 1e-4,), chi2=False), _C((-(1.0 - 1e-4),))),
           DIRECTION_POINTS, 400_000, 128, 65_536, _DIRECTIONAL_INVERSE),
     Entry("Normal", normal, (_C((0.5, 2.0)), _C((0.0, 1e-6), chi2=False), _C((3.0, 1e6), chi2=False)),
           np.array([0.0, 1.0, -3.0, 1e-30, 40.0, -1e3]), 1_000_000, inverse=_LINE_INVERSE),
@@ -547,7 +551,7 @@ ENTRIES = [
                                  _C(((0.0, 1.0, 1.0, 0.0),), chi2=False), _C(((1e6, 1.0, 0.0, 1e-6),), chi2=False)),
           np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
           inverse=_PLANAR_INVERSE, pdf_rtol=1e-4, positive_at_edges=False),  # a zero corner weight: p = 0 there
-    # ---- microfacet distributions and their lobes (jaxsample issue 24, part 1) ----
+    # ---- microfacet distributions and their lobes ----
     # Roughness 1e-4..1 and anisotropy 1e3 (alpha_x = 1, alpha_y = 1e-3); wo at cos θ_o = 1e-7, 45°-ish,
     # along the normal and below the horizon. Chi-square at the smoothest, the roughest and the
     # anisotropic lobe; the rest are checked for normalization, inverse, support and gradients.
@@ -579,7 +583,7 @@ ENTRIES = [
            _C((1.0, 1.0, MICROFACET_GRAZING), chi2=False)),
           DIRECTION_POINTS, 400_000, 128, 65_536, _MICROFACET_REFLECTION_INVERSE, positive_at_edges=False,
           gradients64=False),
-    # ---- spherical triangles and rectangles (jaxsample issue 24, part 2) ----
+    # ---- spherical triangles and rectangles ----
     # Chi-square at a near-hemisphere, a medium and a 1e-4 sr shape; 1e-8 sr for the support and the
     # gradients (its round trip, against the rounding of the sample, is in test_spherical_polygons.py).
     Entry("SphericalTriangle", spherical_triangle,

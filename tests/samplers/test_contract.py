@@ -290,7 +290,8 @@ def test_values_and_derivatives_are_finite_at_the_hard_cases(entry, dtype):
         assert np.all(np.isfinite(pdf_at_points)), (*where, "pdf at the fixed points", pdf_at_points)
         # log_pdf is -inf outside the support, never NaN.
         assert not np.any(np.isnan(log_pdf_at_points)), (*where, "log_pdf at the fixed points", log_pdf_at_points)
-        value, x, pdf, pdf_again, log_pdf_again = (np.asarray(a) for a in out.pop("f(x)/p(x), x, p, pdf(x), log_pdf(x) at u"))
+        value, x, pdf, pdf_again, log_pdf_again = (
+            np.asarray(a) for a in out.pop("f(x)/p(x), x, p, pdf(x), log_pdf(x) at u"))
         assert not np.any(np.isnan(log_pdf_again)), (*where, "log_pdf at the samples", log_pdf_again)
         for name, leaf in (("f(x)/p(x)", value), ("x", x), ("p", pdf), ("pdf(x)", pdf_again)):
             assert np.all(np.isfinite(leaf)), (*where, name, leaf)

@@ -48,7 +48,8 @@ def _outputs(sampler):
 
 def test_the_registry_declares_bounded_parameters_for_the_samplers_that_have_them():
     names = {entry.name.split("-")[0] for entry, _, _ in DECLARED}
-    assert {"PhongLobe", "UniformCone", "VonMisesFisher", "Exponential", "TruncatedExponential", "Power"} <= names, names
+    declared = {"PhongLobe", "UniformCone", "VonMisesFisher", "Exponential", "TruncatedExponential", "Power"}
+    assert declared <= names, names
 
 
 @pytest.mark.parametrize("entry,name,spec", DECLARED, ids=DECLARED_IDS)
@@ -168,7 +169,8 @@ def test_a_checked_copy_is_marked_and_the_users_object_is_not():
     assert is_checked(copy) and is_checked(copy.base) and not is_checked(lobe) and not is_checked(lobe.base)
     leaves, treedef = jax.tree_util.tree_flatten(copy)
     assert is_checked(jax.tree_util.tree_unflatten(treedef, leaves))
-    assert jax.tree_util.tree_structure(lobe) == jax.tree_util.tree_structure(js.Oriented(js.PhongLobe(4.0), jnp.ones(3)))
+    oriented = js.Oriented(js.PhongLobe(4.0), jnp.ones(3))
+    assert jax.tree_util.tree_structure(lobe) == jax.tree_util.tree_structure(oriented)
 
 
 def test_one_pytree_idiom_across_the_package():
@@ -177,7 +179,8 @@ def test_one_pytree_idiom_across_the_package():
     import re
 
     root = pathlib.Path(js.__file__).parent
-    pattern = re.compile(r"register_pytree|register_dataclass|register_static|pytree_dataclass|pytree_attributes|_tree_fields")
+    pattern = re.compile(r"register_pytree|register_dataclass|register_static|pytree_dataclass|pytree_attributes"
+                         r"|_tree_fields")
     offenders = [str(path.relative_to(root)) for path in root.rglob("*.py")
                  if path.name != "pytree.py" and pattern.search(path.read_text())]
     assert not offenders, offenders

@@ -234,7 +234,7 @@ def test_phong_gradients_at_1e7_and_u_next_to_one(dtype):
 def test_vmf_far_hemisphere_direction_and_density_agree():
     """VonMisesFisher(10) beyond the equator (t = 1 - cos θ > 1): the direction is a unit vector and
     the returned density is the density of that direction, so f/p for f = e^{10 cos θ} is constant
-    to float32 rounding (1e-5 relative; t from log1p(-u₀ s) there was off by 8e-4)."""
+    to float32 rounding (1e-5 relative; t from log1p(-u₀ s) there is off by 8e-4)."""
     kappa, t = 10.0, np.linspace(1.05, 1.6, 64)
     u0 = -np.expm1(-kappa * t) / -np.expm1(-2 * kappa)    # the uniforms that reach those t
     u = jnp.asarray(np.stack([u0, np.full_like(u0, 0.3)], axis=-1), jnp.float32)

@@ -1,9 +1,9 @@
-"""A JAX user's first hour with the samplers (issue 14): keys, batch shapes, the names TFP and
-distrax users type, and invalid parameters that must never give a confident number.
+"""A JAX user's first hour with the samplers: keys, batch shapes, the names TFP and distrax users
+type, and invalid parameters that must never give a confident number.
 
-Every test here failed on the code before issue 14 (legacy keys drew another stream, a batched
-PhongLobe raised a broadcasting TypeError, `log_prob`/`seed=`/`batch_shape` did not exist, a
-string exponent was accepted, a traced negative exponent gave a finite gradient). All checks are
+Each test guards one way this can go wrong: legacy keys drawing another stream, a batched
+PhongLobe raising a broadcasting TypeError, `log_prob`/`seed=`/`batch_shape` missing, a string
+exponent accepted, a traced negative exponent giving a finite gradient. All checks are
 exact or structural but one comparison of sample means, whose false-failure rate (5e-6) is stated
 beside it.
 """

@@ -334,7 +334,8 @@ def test_zero_or_non_finite_wo_is_refused_and_nan_when_traced():
 
 def test_beckmann_visible_slope_inversion_reaches_its_floor():
     """F(x)/F(a) = u₀ to ~100 ulps (relative below u₀ = 1/2, absolute above), over cuts a from 1e-4
-    (and 0, 1e-7: roughness 10 at grazing) to ∞ and u₀ from the clamp to 1 - 1e-15 (float64) / 1 - 2^-24 (float32), by float64 SciPy."""
+    (and 0, 1e-7: roughness 10 at grazing) to ∞ and u₀ from the clamp to
+    1 - 1e-15 (float64) / 1 - 2^-24 (float32), by float64 SciPy."""
     rng = np.random.default_rng(3)
     cuts = np.concatenate([[0.0, 1e-7], np.geomspace(1e-4, 50.0, 40), [np.inf]])
     for dtype, tol in ((np.float64, 2e3), (np.float32, 2e2)):

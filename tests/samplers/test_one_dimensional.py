@@ -107,7 +107,8 @@ def test_jit_and_vmap_over_parameters():
         assert np.all(np.isfinite(np.asarray(item)))
     (e_x, e_p), (t_x, t_p), (p_x, p_p), (c_x, c_p), e_pdf, p_pdf = out
     np.testing.assert_allclose(e_pdf, e_p, rtol=1e-4)
-    np.testing.assert_allclose(np.asarray(e_x) * np.asarray(rates), -np.log1p(-np.asarray(u, np.float64)[:, 0]), rtol=1e-5)
+    np.testing.assert_allclose(np.asarray(e_x) * np.asarray(rates), -np.log1p(-np.asarray(u, np.float64)[:, 0]),
+                               rtol=1e-5)
     assert np.all((np.asarray(t_x) >= 0) & (np.asarray(t_x) <= 2.0))
 
 

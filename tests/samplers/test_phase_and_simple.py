@@ -189,7 +189,8 @@ def test_hg_warp_and_its_derivative_are_continuous_through_g_zero(dtype):
         d_cos_theta = jax.jit(jax.jacfwd(lambda g: js.HenyeyGreenstein(g).warp(u)[:, 2]))
         for g in (-1e-7, -1e-30, 0.0, 1e-30, 1e-7):
             g = jnp.asarray(g, dt)
-            np.testing.assert_allclose(np.asarray(cos_theta(g)), 2.0 * xi - 1.0, atol=4e-7 if dtype == "float32" else 3e-7)
+            np.testing.assert_allclose(np.asarray(cos_theta(g)), 2.0 * xi - 1.0,
+                                       atol=4e-7 if dtype == "float32" else 3e-7)
             np.testing.assert_allclose(np.asarray(d_cos_theta(g)), 6.0 * xi * (1.0 - xi), atol=2e-6)
 
 
@@ -345,7 +346,8 @@ def test_linear_tends_to_the_uniform_as_a_tends_to_b():
         assert np.max(np.abs(x - expected)) < 3e-7, (delta, np.max(np.abs(x - expected)))  # 5 ulps of 1/2
 
 
-BILINEAR_CASES = [(1.0, 2.0, 3.0, 4.0), (0.0, 0.0, 1.0, 3.0), (0.0, 1.0, 1.0, 0.0), (1e6, 1.0, 0.0, 1e-6), (5.0, 0.0, 0.0, 0.0)]
+BILINEAR_CASES = [(1.0, 2.0, 3.0, 4.0), (0.0, 0.0, 1.0, 3.0), (0.0, 1.0, 1.0, 0.0), (1e6, 1.0, 0.0, 1e-6),
+                  (5.0, 0.0, 0.0, 0.0)]
 
 
 def test_bilinear_marginal_and_conditional_cdfs_in_closed_form():
@@ -364,7 +366,8 @@ def test_bilinear_marginal_and_conditional_cdfs_in_closed_form():
         np.testing.assert_allclose(marginal, u[:, 1], atol=1e-6, err_msg=str(w))
         left, right = (1.0 - y) * w00 + y * w01, (1.0 - y) * w10 + y * w11
         row = left + right
-        conditional = np.where(row > 0, (left * (x - 0.5 * x * x) + right * 0.5 * x * x) * 2.0 / np.where(row > 0, row, 1.0),
+        conditional = np.where(row > 0,
+                               (left * (x - 0.5 * x * x) + right * 0.5 * x * x) * 2.0 / np.where(row > 0, row, 1.0),
                                x)  # a row of zero density is given uniform x
         np.testing.assert_allclose(conditional, u[:, 0], atol=1e-6, err_msg=str(w))
         bilerp = (1 - x) * (1 - y) * w00 + x * (1 - y) * w10 + (1 - x) * y * w01 + x * y * w11
@@ -387,8 +390,10 @@ def test_invalid_parameters_raise_and_traced_ones_give_nan():
                         (lambda: js.Linear(-1.0, 1.0), "Linear: parameter 'a'"),
                         (lambda: js.Linear(0.0, 0.0), "Linear: parameters 'a' and 'b' must not both be 0"),
                         (lambda: js.Bilinear([0.0, 0.0, 0.0, 0.0]), "Bilinear: parameter 'w' must not be all 0"),
-                        (lambda: js.Bilinear([1.0, -1.0, 1.0, 1.0]), r"Bilinear: parameter 'w' must have every entry in \[0"),
-                        (lambda: js.Bilinear([1.0, 2.0, 3.0]), r"Bilinear: parameter 'w' must have shape \(\.\.\., 4\)")):
+                        (lambda: js.Bilinear([1.0, -1.0, 1.0, 1.0]),
+                         r"Bilinear: parameter 'w' must have every entry in \[0"),
+                        (lambda: js.Bilinear([1.0, 2.0, 3.0]),
+                         r"Bilinear: parameter 'w' must have shape \(\.\.\., 4\)")):
         with pytest.raises(ValueError, match=match):
             make()
     u = jnp.full((3, 2), 0.3)

@@ -151,7 +151,8 @@ def _yardstick(make, shape32, u):
 NEAR_HEMISPHERE_RECTANGLE = ((-1.3, -0.7, -0.005), (2.0, 0.0, 0.0), (0.0, 1.6, 0.0))
 
 CASES_32 = ([("SphericalTriangle", js.SphericalTriangle, shape) for shape in SMALL_TRIANGLES.values()]
-            + [("CosineSphericalTriangle", lambda a, b, c: js.CosineSphericalTriangle(a, b, c, jnp.array([0.3, 0.2, -1.0])),
+            + [("CosineSphericalTriangle",
+                lambda a, b, c: js.CosineSphericalTriangle(a, b, c, jnp.array([0.3, 0.2, -1.0])),
                 SMALL_TRIANGLES[1e-8])]
             + [("SphericalRectangle", js.SphericalRectangle, shape)
                for shape in (*SMALL_RECTANGLES.values(), NEAR_HEMISPHERE_RECTANGLE)])
@@ -263,8 +264,10 @@ def test_traced_invalid_parameters_give_nan():
 
 
 EDGE_ON = {
-    "triangle, viewer in its plane outside it": (js.SphericalTriangle, ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (1.0, 1.0, 0.0))),
-    "triangle, viewer in its plane inside it": (js.SphericalTriangle, ((1.0, 0.0, 0.0), (-1.0, 1.0, 0.0), (-1.0, -1.0, 0.0))),
+    "triangle, viewer in its plane outside it": (js.SphericalTriangle,
+                                                 ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (1.0, 1.0, 0.0))),
+    "triangle, viewer in its plane inside it": (js.SphericalTriangle,
+                                                ((1.0, 0.0, 0.0), (-1.0, 1.0, 0.0), (-1.0, -1.0, 0.0))),
     "triangle, a vertex at the viewer": (js.SphericalTriangle, ((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), (1.0, 1.0, 0.0))),
     "cosine triangle, edge-on": (lambda a, b, c: js.CosineSphericalTriangle(a, b, c, jnp.array([0.0, 0.0, 1.0])),
                                  ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (1.0, 1.0, 0.0))),

@@ -198,7 +198,8 @@ def test_each_channel_moves_with_its_own_albedo():
     key = next_key()
 
     def radiance(albedo):
-        return scene.shade(POINT, NORMAL, WO, scene.Lambertian(albedo), sphere(RADIANCE), jax.random.clone(key), 1024).mean
+        return scene.shade(POINT, NORMAL, WO, scene.Lambertian(albedo), sphere(RADIANCE), jax.random.clone(key),
+                           1024).mean
 
     albedo = jnp.asarray(ALBEDO)
     jacobian = np.asarray(jax.jacobian(radiance)(albedo))

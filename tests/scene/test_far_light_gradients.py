@@ -6,7 +6,7 @@ samples move through each rim point y by the sampler's flow (`Sampler.flow`: war
 the uniforms held). `PhongLobe.inverse` returns u₀ = 1 - μ^{n+1}, which rounds to exactly 1 once
 μ^{n+1} < 2^-25 (μ = cos α of y about the mirror direction). Through the round trip, the warp then
 takes log1p(-1) = -inf, divides it by n + 1 (derivative in n: +inf) and passes it to expm1, whose
-derivative exp(-inf) = 0 multiplies the inf: NaN in every such gradient (the issue's reproduction:
+derivative exp(-inf) = 0 multiplies the inf: NaN in every such gradient (the far light below, at
 exponents 10, 40 and 100; finite at 2, where no rim point has u₀ = 1). The horizon u₀ = 1 does not
 move with n, so the warp's derivative there is 0; and since u₀ = 1 has lost how the tail moves,
 `PhongLobe.flow` moves a direction by log ξ = (n + 1) log μ instead, without the round trip (through
@@ -60,7 +60,7 @@ def reference_gradient(exponent, step=0.05):
 
 @pytest.mark.parametrize("strategy", ["mis", "brdf"])
 def test_the_far_light_reproduction_is_finite_and_agrees_with_the_reference(strategy):
-    """The issue's reproduction (key 0 is its key), attached, at exponents 10, 40 and 100, over 32
+    """The far light (key 0 among the keys), attached, at exponents 10, 40 and 100, over 32
     keys: every gradient finite; at 10 and 40 their mean within 5 of its standard errors of the
     float64 reference (|t| with 31 dof: false failure 2e-5 per check); at 100, where the reference
     (-1.0e-50) lies below float32's smallest subnormal, every gradient exactly 0. Per key, at N = 256,
@@ -112,8 +112,9 @@ def test_value_and_gradients_are_finite_wherever_the_light_sits(strategy, mode, 
     outside it, straddling the horizon, toward the viewer, below the surface), exponents 1 to 1e4
     log-uniformly, every strategy and mode: the value and the gradients in the exponent and the
     light's centre are finite. Catches a NaN from any density, weight or flow that underflows in
-    the lobe's tail (the attached "brdf" and "mis" gradients were NaN wherever the silhouette
-    reached it, at the mirror direction too once n = 1e4 made the lobe narrower than the light)."""
+    the lobe's tail (such a NaN reaches the attached "brdf" and "mis" gradients wherever the
+    silhouette reaches the tail, at the mirror direction too once n = 1e4 makes the lobe narrower
+    than the light)."""
     value, (d_exponent, d_centre) = value_and_gradient(strategy, mode)(
         jnp.float32(10.0 ** log10_exponent), _centre(cos_theta, azimuth, distance), jax.random.key(seed))
     assert np.isfinite(float(value)), value

@@ -1,4 +1,4 @@
-"""The GGX rough conductor, the quad light and solid-angle light sampling (issue 24, the scene side).
+"""The GGX rough conductor, the quad light and solid-angle light sampling.
 
 Exact references: Fresnel's closed forms; the BRDF against the microfacet samplers' own D, G2 and
 the Fresnel term; `shade` against float64 quadratures (`reference_radiance`: the quad by area, the

@@ -1,4 +1,4 @@
-"""The scene layer: BRDFs, lights, `shade` and its gradients (issue 7).
+"""The scene layer: BRDFs, lights, `shade` and its gradients.
 
 Statistical thresholds. Bias checks compare a Monte Carlo estimate with a float64 quadrature
 reference (or a closed form) and require |z| = |mean − reference| / stderr < 4. With n >= 2^16
@@ -369,7 +369,8 @@ def test_light_position_gradient_matches_finite_differences_and_the_closed_form(
     # failure 6e-7 per component), from `shade_grad` on the same samples.
     held = scene.shade_grad(lambda c: (POINT, NORMAL, WO, brdf, scene.SphereLight(c, radius, radiance)), center,
                             jax.random.key(14), 1 << 14, strategy="light", mode="detached")
-    assert np.all(np.abs(np.asarray(held.mean) - exact) < 5.0 * np.asarray(held.stderr)), (held.mean, held.stderr, exact)
+    assert np.all(np.abs(np.asarray(held.mean) - exact) < 5.0 * np.asarray(held.stderr)), \
+        (held.mean, held.stderr, exact)
     assert np.all(np.asarray(held.stderr) < 0.05 * scale)
 
 
@@ -380,7 +381,7 @@ def test_exponent_gradient_is_finite_and_agrees_between_modes():
     estimator's ∂f/∂n / p carries f log cos α / p, which is noisier than the pathwise one), the
     albedo derivative ±0.27 %; at the 2^19 samples used here, ±1.2 %, ±6.6 % and ±0.07 %, so the
     bounds (10 %, 50 %, 2 %) are 8.5, 7.6 and 29 standard deviations away: normal FFR below 1e-13.
-    (At 2^15 samples they were 2 sd away, a false failure for about one key in 20.)"""
+    (At 2^15 samples they would be 2 sd away, a false failure for about one key in 20.)"""
     sky = scene.ConstantSky(1.0)
     wo = jnp.asarray(_direction(1.2, 0.4), jnp.float32)  # grazing: the horizon clips the lobe
 

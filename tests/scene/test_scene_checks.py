@@ -42,7 +42,8 @@ def test_lights_in_a_dict_or_an_empty_list():
 
 
 def test_vectors_of_the_wrong_shape_or_zero_length():
-    with pytest.raises(ValueError, match=r"parameter 'point' must be a 3-vector .* got shape \(4, 3\) \(one shading point"):
+    with pytest.raises(ValueError,
+                       match=r"parameter 'point' must be a 3-vector .* got shape \(4, 3\) \(one shading point"):
         shade(point=jnp.zeros((4, 3)))
     with pytest.raises(ValueError, match=r"parameter 'wo' must be a 3-vector \(shape \(3,\)\); got shape \(2,\)"):
         shade(wo=jnp.ones(2))

@@ -1,18 +1,19 @@
-"""`shade`'s gradients for every parameter of the BRDF and the light (issue 23), against central
+"""`shade`'s gradients for every parameter of the BRDF and the light, against central
 differences of the float64 `reference_radiance` (`jaxsample/report/shade_gradients.py`: 12 configurations per light).
 
 Each configuration's gradient comes from `shade_grad` (per-evaluation gradients, the silhouette's
 boundary term inside each, 4096 evaluations, a fixed key); z = (gradient - reference) / stderr per
 parameter. Thresholds: the mean of z² over a light's 12 x (7 or 12) parameters below 2.5, and
 every |z| below 5.5 (attached: all three strategies, both lights; detached: the default
-"mis" on the sphere light, whose boundary term is the plain Δf v·n). With independent normal z the first is the χ² statistic divided by its dof,
+"mis" on the sphere light, whose boundary term is the plain Δf v·n). With independent normal z the
+first is the χ² statistic divided by its dof,
 and 2.5 is more than 9 of its standard deviations above 1; the parameters are correlated (albedo
 and radiance enter as a product), which widens its spread, at most by the factor of the two
 duplicated columns, keeping the threshold above 6 sd (false failure below 1e-8 for a normal
 tail); the second, over 12 x 7 x 4 + 12 x 12 x 3 = 768 values, fails by chance with probability 768 x 3.8e-8 < 3e-5. The
 estimators' skew at exponent 1000 (a mean 2.9 sd low at 2^14 evaluations, unbiased at 2^21)
 is what 5.5 leaves room for. Without the boundary term the light parameters' z reach hundreds
-(the "brdf" strategy's light gradient is then exactly 0), and the default "mis" was 5-100 sd off.
+(the "brdf" strategy's light gradient is then exactly 0), and the default "mis" is 5-100 sd off.
 """
 
 import jax

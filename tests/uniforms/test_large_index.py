@@ -1,4 +1,4 @@
-"""Sample counts and 64-bit sample indices (issue 14, item 5).
+"""Sample counts and 64-bit sample indices.
 
 `n` is any concrete integer; a traced n is a TypeError that says how to make it static; the
 replicated sources say how to change their replicate count. Sample indices have 64 bits: the point
@@ -159,7 +159,8 @@ def test_lanes_at_a_64_bit_offset_are_the_block_points(name, source, dims, formu
     for offset in (BIG - 5, (1 << 33) + (1 << 31)):   # chunks aligned to 64, both index words used
         groups, block = both(seed, Index(jnp.uint32(offset >> 32), jnp.uint32(offset & 0xFFFFFFFF)))
         np.testing.assert_array_equal(np.asarray(block)[5 if offset == BIG - 5 else 0],
-                                      (formula or _expected_stratified_1d)(seed, offset + (5 if offset == BIG - 5 else 0)))
+                                      (formula or _expected_stratified_1d)(
+                                          seed, offset + (5 if offset == BIG - 5 else 0)))
         g = len(groups)
         points = np.empty((count, dims), np.float32)
         for q, lanes in enumerate(groups):

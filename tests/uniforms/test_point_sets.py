@@ -76,10 +76,10 @@ def _shortest_dual(z, m: int, reach: int = 40) -> int:
 
 def test_lattice_vector_has_no_short_dual_vector_in_three_dimensions():
     """The generating vector's first three coordinates make a good rule at every 2^m it was built
-    for. The order-2-weight vector used before had index 20 .. 22 for m = 10 .. 16 (h = (-1, -11, -2),
-    in its dual lattice for every m <= 16, is the shortest for m = 13 .. 16): smooth 3-d integrands
-    stalled near 1e-5 error there. This one's index
-    is 30 .. 21788 over m = 10 .. 20. The bound 90 from m = 12 on fails the old vector at m = 12 .. 16."""
+    for. Kuo's order-2-weight vector lattice-32001-1024-1048576.3600 has index 20 .. 22 for
+    m = 10 .. 16 (h = (-1, -11, -2), in its dual lattice for every m <= 16, is the shortest for
+    m = 13 .. 16): smooth 3-d integrands stall near 1e-5 error there. This one's index is
+    30 .. 21788 over m = 10 .. 20. The bound 90 from m = 12 on fails lattice-32001 at m = 12 .. 16."""
     z = U.lattice_generating_vector(3).astype(np.int64)
     index = {m: _shortest_dual(z, m) for m in range(10, 21)}
     assert all(index[m] >= 90 for m in range(12, 21)), index
@@ -226,7 +226,7 @@ def test_owen_halton_permutes_each_digit_by_its_prefix_and_permutation_halton_do
     for a correct Owen scramble with probability 36^-4 < 1e-6 over the 4 keys (requiring it for
     every key would fail with probability 1 - (35/36)^4 ~ 0.11)."""
     index = np.arange(9)
-    d0, d1 = index % 3, index // 3
+    d1 = index // 3
     nested = []
     for _ in range(4):
         for scramble in ("permutation", "owen"):
@@ -431,7 +431,8 @@ def test_estimators_stream_the_source_under_jit_and_vmap(name):
     FFR 4.6e-4 for the 4 cases (4 keys each): |t_31| > 5 has probability 2.1e-5 for normal
     replicate means; these point sets' replicate means are far from normal (Halton's nearly
     uniform), and t statistics of 32 drawn from 2^16 simulated replicate means of each set (2e7
-    per set; their tails at 3 and 4 matched 16384 keys of this estimator) exceeded 5 for 1.3e-5 (lattice), 5.1e-5 (halton), 3.0e-5 (halton-owen) and 2.0e-5
+    per set; their tails at 3 and 4 matched 16384 keys of this estimator) exceeded 5 for 1.3e-5
+    (lattice), 5.1e-5 (halton), 3.0e-5 (halton-owen) and 2.0e-5
     (lhs) of them. With R = 8 the same simulation gives 5.5e-3, 4.2e-3, 2.9e-3 and 1.5e-3, as
     8000 keys of the estimator did (6e-3, 4.6e-3, 3.1e-3, 4e-4)."""
     source = SOURCES[name](32)
@@ -501,8 +502,8 @@ def test_latin_hypercube_jitter_is_uniform_in_each_stratum_and_independent():
 def test_many_coordinates_are_stored_in_groups_without_changing_a_point(name, monkeypatch):
     """Past `STORE_PAST` coordinates (24 for the Latin hypercube, 48 for Halton) all but the last
     `FUSED_LANES` lanes are computed in loops of their own and stored (`_replicated.store_all_but`:
-    one fused loop over every coordinate was not vectorized, 9x Random at 28-d for the Latin
-    hypercube). The program then holds the `lax.cond` boundary that stores them, and the points
+    one fused loop over every coordinate is not vectorized, and makes the Latin hypercube many times
+    slower than Random at 28-d). The program then holds the `lax.cond` boundary that stores them, and the points
     are bit for bit those of the fused form: the first coordinates equal those of a block with
     fewer (fused, no boundary). The Latin hypercube at its own threshold (24 vs 26 coordinates);
     Halton's threshold lowered to 4 here (a 52-d Halton program takes about 50 s to compile)."""

@@ -18,7 +18,7 @@ from keyring import next_key
 jax.config.update("jax_debug_key_reuse", True)
 
 
-# Unscrambled Sobol' points (32-bit fractions, natural order) in dimensions past the old 128,
+# Unscrambled Sobol' points (32-bit fractions, natural order) in dimensions past 128,
 # computed once with SciPy 1.17.1: scipy.stats.qmc.Sobol(d=1024, scramble=False, bits=32)
 # .random(2**20) * 2**32, whose rows are in Gray-code order (row n is natural point n ^ (n >> 1)),
 # remapped to natural order.
@@ -81,7 +81,8 @@ def test_every_joe_kuo_dimension_is_a_net_with_the_sobol_t_bound():
     assert one_d_nets(points, 12)
     degree = np.array([1] + [s for s, _, _ in S._joe_kuo_lines()])
     j = np.arange(1023)
-    pairs = np.concatenate([np.stack([j, j + 1], 1), np.stack([0 * j, j + 1], 1), np.stack([0 * j[1:] + 1, j[1:] + 1], 1),
+    pairs = np.concatenate([np.stack([j, j + 1], 1), np.stack([0 * j, j + 1], 1),
+                            np.stack([0 * j[1:] + 1, j[1:] + 1], 1),
                             np.random.default_rng(7).integers(0, 1024, (2000, 2))])
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]
     t = t_values(points, pairs, 8)
@@ -175,7 +176,7 @@ def test_points_are_uniform_and_independent_across_dimensions_and_replicates(nam
         assert abs(np.corrcoef(points[:, 0, a], points[:, 1, a])[0, 1]) < limit, a
         assert abs(np.corrcoef(points[:, 2, a], points[:, 3, a])[0, 1]) < limit, a
     # The check can fail: u^1.5 has density (2/3) u^(-1/3), a noncentrality of ~2000 at these
-    # 8192 keys (u^1.1, ~80, was rejected only ~70% of the time: a flaky canary, not a bug).
+    # 8192 keys (u^1.1, ~80, is rejected only ~70% of the time: too weak a canary to be stable).
     assert not chi2_ok(points[:, 0, 0] ** 1.5)
 
 
