@@ -1072,7 +1072,7 @@ MUTATIONS = [
       ("tests/scene/test_shade_gradients.py::test_every_gradient_agrees_with_the_reference[triangle-mis-attached]",),
       "the triangle light's density just inside its rim 4/Ω under solid-angle sampling (the default)"),
     M("roughness-fit-wrong-component", "jaxsample/report/inverse_problem.py",
-      'gradient[:, CONDUCTOR_QUAD_PARAMETERS.index("log_alpha")]', "gradient[:, 1]",
+      'gradient[..., CONDUCTOR_QUAD_PARAMETERS.index("log_alpha")]', "gradient[..., 1]",
       ("tests/scene/test_rough_conductor_and_quad.py::test_roughness_fit_recovers_alpha",),
       "the roughness fit follows ∂L/∂corner_y instead of ∂L/∂log α"),
     # ---- solid-angle sampling of spherical triangles and rectangles ----
@@ -1268,7 +1268,7 @@ MUTATIONS = [
       ("tests/_core/test_fast_path.py::test_a_many_output_estimate_runs_the_generator_in_a_few_loops_not_one_per_output",),
       "with many outputs per point the chunk's uniforms must be stored once, or each output's loop re-runs Philox"),
     M("lanes-stored-once-rule-dropped", "jaxsample/_core/lanes.py",
-      "    _core_stored_once_p: _stored_once,\n", "",
+      "**({} if _core_stored_once_p is None else {_core_stored_once_p: _stored_once}),", "",
       ("tests/_core/test_fast_path.py::test_stored_once_is_the_identity_for_values_vmap_and_derivatives",),
       "lane_map must keep a stored_once marker on the lanes (without its rule it stacks the values through vmap)"),
     M("report-picks-not-shown", "jaxsample/report/__init__.py",

@@ -17,9 +17,9 @@ emits an `UnreliableEstimateWarning`. Inside an enclosing `jit`, `vmap` or `grad
 (a nested `jit` is inlined, and no value can be inspected). The checks are registered, not
 imported: this module is the bottom layer, and the results they check are defined above it. A call
 whose static arguments cannot be hashed (a traced `n`, an unhashable callable) or whose traced
-arguments are not arrays or numbers runs the function as written (a string given where a number may
-also go, such as `baseline="leave_one_out"`, is static for that call, not a reason to run uncompiled), so that its own checks give
-their usual messages.
+arguments are not arrays or numbers runs the function as written, so that its own checks give their
+usual messages (a string given where a number may also go, such as `baseline="leave_one_out"`, is
+static for that call, not a reason to run uncompiled).
 """
 
 from __future__ import annotations

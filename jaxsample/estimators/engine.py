@@ -12,9 +12,9 @@ the nonzero fraction from the moments), which `run_stream` calls once and `estim
 Streaming: the n samples are processed in chunks of `chunk_size` inside `lax.scan`, so memory does
 not grow with n. Sample indices have 64 bits (`jaxsample.uniforms.index`): a stream of more than
 2^32 points carries its chunk offsets as two uint32 words; shorter streams keep the uint32
-offsets, and so the very program, of a 32-bit counter. The point with global index i is the same whatever the chunk size, the device
-count or the jit/vmap context (counter-based sources), so the estimate changes only by float
-rounding between chunkings and shardings.
+offsets, and so the very program, of a 32-bit counter. The point with global index i is the same
+whatever the chunk size, the device count or the jit/vmap context (counter-based sources), so the
+estimate changes only by float rounding between chunkings and shardings.
 
 Accumulation, and why it is careful: within a chunk the sums are taken in a tree of blocks of
 `_BLOCK` values (error ~ (log n) ε rather than n ε); across chunks the running sums are
@@ -58,7 +58,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.counts import check_count
-from .._core.params import default_float_dtype, resolve_float_dtype
+from .._core.params import resolve_float_dtype
 from .._core.pytree import Pytree
 from .._core import doublefloat
 from .._core.computed_once import computed_once, stored_once
@@ -369,9 +369,8 @@ def group_values(values_fn, groups, tok, stored: bool, derivative_fn=None):
 
 # The derivative is pushed forward along every coordinate of the moving constants while they times
 # the values per point are at most this many (`_differentiable_stream`, `_forward_tangents`); past it,
-# one reverse sweep per point is cheaper. Measured (`benchmarks/compile_and_outputs.py`, n = 2^20):
-# the 16-coefficient spherical-harmonics projection's gradient ran 134 ns per sample forward and
-# 39 reverse, the 9-coefficient 54 and 30; one value per point, forward 6.8 (the environment integrand).
+# one reverse sweep per point is cheaper: `benchmarks/compile_and_outputs.py` times both ways for
+# spherical-harmonics projections of 9 and 16 values per point and for one value per point.
 FORWARD_WIDTH = 8
 
 
@@ -382,8 +381,8 @@ def _forward_tangents(point, example, consts, live, once, tangents, regroup, sha
 
     Why. The JVP rule of `group_values` is linear in the tangents; under reverse mode JAX
     transposes it, and each primal value that transposition needs becomes its own loop in XLA's CPU
-    fusion, each recomputing the warp from the uniforms (the gradient of BRDF-sampled `shade` had
-    some 20 such loops of 170-320 operations per group, 6-10x the value's run time). Here the
+    fusion, each recomputing the warp from the uniforms (for BRDF-sampled `shade`, some 20 loops of
+    170-320 operations per group: `docs/xla-cpu-paths.md`). Here the
     residuals are the few arrays S_k, computed together in loops that share the warp (pairs packed by
     `computed_once`), and the transposed rule is a sum of products with them. Worth it while
     the moving coordinates are few (one per scalar parameter differentiated: an exponent, the
@@ -453,8 +452,9 @@ def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, siz
     # group is stored too: else XLA's CPU reduction fusion (YNNPACK) takes the integrand's last
     # elementwise ops (the sum of x, y, z) into the replicate sums and leaves each operand its own
     # loop, each re-running the generator and the warp (Sobol' with UniformSphere: 3 such loops).
-    values = computed_once(group_values(values_fn, groups, token(offset), stored, getattr(values_fn, "derivative", None)),
-                           token(offset), alone=True)
+    derivative_fn = getattr(values_fn, "derivative", None)
+    values = computed_once(group_values(values_fn, groups, token(offset), stored, derivative_fn), token(offset),
+                           alone=True)
     return _chunk_moments(values, source.replicates, out_shape, bins, diagnostics)
 
 
@@ -470,9 +470,9 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
     loop a `while_loop`: for a stream traced inside a derivative rule (`_differentiable_stream`).
     There, JAX's partial evaluation of a `scan` (its rule runs even when every input is known)
     hoists each loop-invariant value out of the loop, a scan's unchanged carry included: the
-    per-point program's constants, broadcast to the chunk's lanes, became 465 chunk-sized arrays
-    that the loop read from memory (the gradient of MIS-shaded Phong under a sphere light ran 1.4x
-    slower). A while loop keeps them inside, as scalars."""
+    per-point program's constants, broadcast to the chunk's lanes, turn into hundreds of
+    chunk-sized arrays that the loop reads from memory (`docs/xla-cpu-paths.md`). A while loop keeps
+    them inside, as scalars."""
     replicates = source.replicates
     wide = total > NARROW_LIMIT
 
@@ -538,9 +538,10 @@ def _differentiable_stream(values_fn, source: Source, seed, dims: int, dtype, n:
 
     Why not the reverse pass. Differentiated in reverse, the loop is rematerialized chunk by chunk
     and each primal value the transposed per-point program needs becomes its own loop in XLA's
-    CPU fusion, recomputing the warp: the gradient of a shading point ran at 10-90x its value. With
-    more moving coordinates than `FORWARD_WIDTH` (times the values per point), the forward pass
-    would cost more than that, and the derivative is the reverse pass as before.
+    CPU fusion, recomputing the warp: the gradient of a shading point costs 10-90x its value that
+    way (`docs/xla-cpu-paths.md`). With more moving coordinates than `FORWARD_WIDTH` (times the
+    values per point), the forward pass would cost more than that, and the derivative is the
+    reverse pass.
     """
     example = jnp.zeros((dims,), dtype)
     point, consts = _per_point(values_fn, example)

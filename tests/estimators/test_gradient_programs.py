@@ -129,7 +129,8 @@ def test_the_shading_programs_stay_on_the_lanes(strategy):
     `safe_sqrt` had) or a missing rule leaves the lanes, and the gradient's loops multiply."""
     quad = scene.QuadLight(jnp.array([-0.5, -0.5, 2.0]), jnp.array([0.0, 1.0, 0.0]), jnp.array([1.0, 0.0, 0.0]), 3.0)
     for brdf, light in ((scene.Phong(25.0, 0.8), LIGHT), (scene.RoughConductor(0.3, 0.2, 3.0), quad)):
-        fn, dims, _, _ = direct._program(POINT, NORMAL, WO, brdf, [light], strategy, "attached", "power", N, jnp.float32)
+        fn, dims, _, _ = direct._program(POINT, NORMAL, WO, brdf, [light], strategy, "attached", "power", N,
+                                         jnp.float32)
         u = tuple(jnp.linspace(0.05, 0.95, 8) * (0.9 + 0.01 * i) for i in range(dims))
         for program in (fn, getattr(fn, "derivative", fn)):
             lane_map(lambda one: program(one[None])[0], 8, strict=True)(u)

@@ -11,11 +11,13 @@ Statistical thresholds (false-failure rates for normal z; keys are fixed, so a r
 - values and gradients of the report's RGB gold conductor (∂/∂ corner, ∂/∂ log α, default strategy
   "mis", attached, 4096 evaluations), per channel: |z| < 4.5 for 12 values and 48 gradients
   (60 x 6.8e-6 < 4.1e-4). Calibration (`python benchmarks/conductor_quad_calibration.py 40`: the z
-  of `conductor_quad_program` against `conductor_quad_reference` at 32 panels, 40 keys): per case, channel and parameter the mean z
-  lay in -0.35..0.47 (a mean of 40 carries ±0.16; the largest of 48 such is expected near 0.46) and
-  the spread in 0.85-1.08; the largest of the 2400 |z| was 3.66, as for normal z;
-- the roughness fit: 40 Adam steps from α = 0.05 toward α = 0.2 end within 3 % of it (over 8 keys
-  the final α was 0.1986-0.1989) and lower the loss below 1/1000 of the first (it fell 26000-44000x).
+  of `conductor_quad_program` against `conductor_quad_reference` at 32 panels, 40 keys): per case,
+  channel and parameter the mean z lay in -0.35..0.47 (a mean of 40 carries ±0.16; the largest of 48
+  such is expected near 0.46) and the spread in 0.85-1.08; the largest of the 2400 |z| was 3.66, as
+  for normal z;
+- the roughness fit (RGB gold, the loss over every channel): 40 Adam steps from α = 0.05 toward
+  α = 0.2 end within 3 % of it (over 8 keys the final α was 0.1986-0.1987) and lower the loss below
+  1/1000 of the first (it fell 28600-47000x).
 Each test was seen to fail on a broken copy (tests/mutations.py records the main ones).
 
 Suite time: one program computes the default strategy's values and gradients for the 4 configurations
