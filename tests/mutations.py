@@ -1484,7 +1484,7 @@ MUTATIONS = [
       "a shared float64 operand of an inner program cast to float32 under x64 off: an estimate inside an "
       "integrand fails with a dtype mismatch"),
     M("one-group-values-not-stored", "jaxsample/estimators/engine.py",
-      "                           token(offset), alone=True)", "                           token(offset))",
+      "                           alone=True)", "                           alone=False)",
       ("tests/_core/test_fast_path.py::test_a_one_group_estimate_computes_its_points_in_one_loop_whatever_the_integrand_combines",),
       "a one-group chunk's values reach the replicate sums unstored: XLA's reduction fusion splits the "
       "integrand's last ops off and each operand's loop re-runs the generator and the warp"),
