@@ -37,7 +37,7 @@ import numpy as np
 
 from .._core.params import check_parameter, concrete_value
 from .._core.pytree import Pytree, parameter
-from ..samplers._spherical import components, fan_solid_angle, sub
+from ..samplers._spherical import components, fan_solid_angle, polygon_inside, sub
 from ..samplers.frame import Frame
 
 __all__ = ["Cap", "SphericalTriangle", "SphericalPolygon", "Disk"]
@@ -115,14 +115,12 @@ def _polygon_vertices(vertices):
     return _unit(jnp.asarray(vertices))
 
 
-def _polygon_indicator(vertices, x):
-    """1 inside a convex spherical polygon (edges v_k → v_{k+1} all turning the same way), else 0."""
-    count = vertices.shape[0]
-    orientation = jnp.sign(jnp.sum(vertices[0] * jnp.cross(vertices[1], vertices[2]), axis=-1))
-    inside = orientation != 0  # a degenerate (traced) polygon holds nothing
-    for k in range(count):
-        inside = inside & (orientation * jnp.sum(x * jnp.cross(vertices[k], vertices[(k + 1) % count]), -1) >= 0)
-    return inside.astype(jnp.result_type(x, float))
+def _polygon_indicator(points, x):
+    """1 inside a convex spherical polygon (edges p_k → p_{k+1} all turning the same way; a
+    degenerate, traced, polygon holds nothing), boundary included, else 0: the inside test of
+    `samplers._spherical.polygon_inside` on the vertices as given and their exact edges."""
+    edges = [sub(q, p) for p, q in zip(points, points[1:] + points[:1])]
+    return polygon_inside(components(x), points, edges, 0.0).astype(jnp.result_type(x, float))
 
 
 def _polygon_boundary(vertices, t):
@@ -179,8 +177,8 @@ def _polygon_solid_angle(points):
 
 class _ConvexSpherical(Pytree):
     """What a convex spherical polygon does with its (K, 3) unit vertices (`_vertices()`, for the
-    boundary's arcs and the inside test) and its vertices as given (`_points()`, for the solid
-    angle)."""
+    boundary's arcs) and its vertices as given (`_points()`, for the solid angle and the inside
+    test)."""
 
     def _points(self):
         """The vertices as given, as component tuples."""
@@ -190,7 +188,7 @@ class _ConvexSpherical(Pytree):
         return _polygon_solid_angle(self._points())
 
     def indicator(self, x):
-        return _polygon_indicator(self._vertices(), x)
+        return _polygon_indicator(self._points(), x)
 
     def boundary_sample(self, t):
         return _polygon_boundary(self._vertices(), t)

@@ -114,20 +114,23 @@ def fan_solid_angle(apex, spokes):
     return total
 
 
-def polygon_inside(x, vertices, edges, tolerance):
+def polygon_inside(x, vertices, edges, tolerance, xp=jnp):
     """Whether unit directions x lie in the convex spherical polygon with `vertices` (points of R³,
     in order either way round) and `edges[k] = vertices[k+1] - vertices[k]` (passed in, so that a
-    caller with exact edges uses them), to within `tolerance` radians of an edge's great circle.
+    caller with exact edges uses them), to within `tolerance` radians of an edge's great circle
+    (component tuples; the package's one inside test).
 
     Edge k's great circle has the normal n_k = v_k × e_k (= v_k × v_{k+1}, formed from the edge so
     that close vertices do not cancel); x is inside when σ x·n_k >= -tolerance |n_k| for every k,
-    σ the orientation of the polygon (the sign of v_0 · (e_0 × e_1)).
+    σ the orientation of the polygon (the sign of v_0 · (e_0 × e_1)); a degenerate polygon (σ = 0)
+    holds nothing. `xp` is the array namespace: `numpy` for the checks' float64 domain.
     """
-    orientation = jnp.sign(dot(vertices[0], cross(edges[0], edges[1])))
+    size = length if xp is jnp else (lambda p: xp.sqrt(dot(p, p)))
+    orientation = xp.sign(dot(vertices[0], cross(edges[0], edges[1])))
     inside = orientation != 0
     for v, e in zip(vertices, edges):
         normal = cross(v, e)
-        inside = inside & (orientation * dot(x, normal) >= -tolerance * length(normal))
+        inside = inside & (orientation * dot(x, normal) >= -tolerance * size(normal))
     return inside
 
 
@@ -364,10 +367,7 @@ class SphericalPolygon:
         """Unit length within 1e-5 and inside every edge's great circle within `tolerance` radians."""
         x = np.asarray(x, np.float64)
         v = np.asarray(self.vertices, np.float64)
-        sign = self._orientation()
         norm = np.linalg.norm(x, axis=-1)
-        inside = np.abs(norm - 1.0) <= 1e-5
-        for k in range(len(v)):
-            normal = np.cross(v[k], v[(k + 1) % len(v)] - v[k])
-            inside &= sign * (x @ normal) >= -tolerance * np.linalg.norm(normal) * norm
-        return inside
+        edges = [tuple(v[(k + 1) % len(v)] - v[k]) for k in range(len(v))]
+        inside = polygon_inside(tuple(np.moveaxis(x, -1, 0)), [tuple(p) for p in v], edges, tolerance * norm, xp=np)
+        return (np.abs(norm - 1.0) <= 1e-5) & inside

@@ -117,8 +117,8 @@ def test_solid_angles_match_van_oosterom_strackee_and_an_independent_quadrature(
 # samples lie near the foot of the perpendicular, far nearer than the corner.
 NEAR_HEMISPHERE_RECTANGLE = ((-1.3, -0.7, -0.005), (2.0, 0.0, 0.0), (0.0, 1.6, 0.0))
 
-# The solid angle has one implementation (samplers/_spherical.py), which the samplers and the regions
-# of jaxsample.edges call.
+# The solid angle and the inside test have one implementation each (samplers/_spherical.py), which
+# the samplers, the regions of jaxsample.edges and the checks' domain all call.
 
 
 def fan64(points):
@@ -167,6 +167,42 @@ def test_a_region_solid_angle_is_exact_to_rounding_at_the_hard_cases(name):
     reference = fan64(points32)
     assert abs(float(_region(points32).solid_angle()) / reference - 1) < 1e-6, (float(_region(points32).solid_angle()),
                                                                               reference)
+
+
+def _probes(points, fraction):
+    """Unit directions just inside and just outside each edge of a convex polygon (float64): off the
+    edge's midpoint along its great circle's normal by `fraction` of the edge's angle."""
+    p = [np.asarray(v, np.float64) / np.linalg.norm(v) for v in points]
+    centre = np.sum(p, axis=0)
+    inside, outside = [], []
+    for k in range(len(p)):
+        start, end = p[k], p[(k + 1) % len(p)]
+        normal = np.cross(start, end)
+        normal *= np.sign(normal @ centre) / np.linalg.norm(normal)  # toward the polygon
+        middle = (start + end) / np.linalg.norm(start + end)
+        step = fraction * np.arctan2(np.linalg.norm(np.cross(start, end)), start @ end)
+        for sign, found in ((1.0, inside), (-1.0, outside)):
+            x = middle + sign * step * normal
+            found.append(x / np.linalg.norm(x))
+    return np.array(inside), np.array(outside)
+
+
+@pytest.mark.parametrize("name", list(HARD_POLYGONS))
+def test_the_inside_test_agrees_with_float64_for_the_samplers_the_regions_and_the_checks(name):
+    """Directions 5 % of an edge's angle inside and outside each edge (both orientations of the
+    polygon): the sampler's density is > 0 exactly inside, the region's indicator is 1 exactly
+    inside, and the checks' `contains` agrees, as the float64 geometry says. Catches an inside test
+    that skips an edge (the directions beyond it are counted inside) in any of the three users."""
+    sampler, vertices = _polygon32(name)
+    for points32 in (vertices, vertices[::-1]):
+        inside, outside = _probes(points32, 0.05)
+        region = _region(points32)
+        domain = SphericalPolygon(tuple(tuple(float(t) for t in v) for v in points32))
+        for probes, expected in ((inside, True), (outside, False)):
+            x = jnp.asarray(probes, jnp.float32)
+            assert np.all((np.asarray(sampler.pdf(x)) > 0) == expected), (name, expected)
+            assert np.all((np.asarray(jax.vmap(region.indicator)(x)) == 1) == expected), (name, expected)
+            assert np.all(domain.contains(probes) == expected), (name, expected)
 
 
 # ---------------------------------------------------------------------------------------------
