@@ -236,6 +236,17 @@ class Sampler(Pytree):
         carry what the derivative needs (`PhongLobe`: the lobe's tail, where u₀ rounds to 1)."""
         return self.warp(jax.lax.stop_gradient(self.inverse(jax.lax.stop_gradient(x))))
 
+    def measure_valued_terms(self, u: jax.Array):
+        """(θ, x, x', c) for `gradient="measure_valued"` (`jaxsample.expectation`), from uniforms u of
+        shape (..., uniform_dims + 1): the derivative in the parameter θ as a scaled difference of
+        two expectations, d/dθ E_{p_θ}[g] = c (E[g(x)] - E[g(x')]), x ~ p_θ and x' drawn from the
+        second density of the decomposition (Mohamed et al. 2020, section 6). A class with such a
+        decomposition overrides this (`PhongLobe`: its exponent); the default has none and raises
+        ValueError."""
+        raise ValueError(f"{type(self).__name__} has no measure-valued decomposition (gradient='measure_valued' "
+                         "needs a sampler that defines measure_valued_terms, as PhongLobe does for its exponent): "
+                         "use 'pathwise' or 'score'")
+
     def prob(self, x: jax.Array) -> jax.Array:
         """The density at `x` (the name TFP, distrax and NumPyro use): `pdf`, batched and checked."""
         return apply_point(self, "pdf", x)
