@@ -128,7 +128,7 @@ def _packed(g, layout: IntegrandLayout, dtype):
     if layout.plain:
         return g
     if boundary_dims(g):
-        raise TypeError("expectation: an integrand with declared discontinuities (jaxsample.edges.masked) "
+        raise TypeError("expectation: an integrand with declared discontinuities (jaxsample.edges.mask) "
                         "must return one real array")
     return lambda x: layout.pack(jax.tree_util.tree_map(lambda v: jnp.asarray(v)[None], g(x)), dtype)[0]
 
@@ -160,7 +160,7 @@ def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Arra
 def _surrogate_values(g, sampler, u, gradient, baseline):
     """`expectation_values` for a g whose value is one real array (packed).
 
-    A g with declared discontinuities (`jaxsample.edges.masked`) reads boundary uniforms from the
+    A g with declared discontinuities (`jaxsample.edges.mask`) reads boundary uniforms from the
     last `boundary_dims(g)` columns and adds the boundary term of ∫ g p dμ (`boundary.py`): the
     pathwise samples move with θ, the score and measure-valued ones are held constant.
     """

@@ -85,14 +85,14 @@ def packed_values(f, sampler, u: jax.Array, mode: str, *, owner: str = "estimate
     """(Y packed by the integrand rule, its layout): Y_i = f(x_i)/p(x_i) for every component of
     f's value, as one real (count, *out_shape) array (f's own values for one real array).
 
-    An f that declares discontinuities (`jaxsample.edges.masked`) reads its boundary samples from
+    An f that declares discontinuities (`jaxsample.edges.mask`) reads its boundary samples from
     the last `boundary_dims(f)` columns of u and adds their boundary terms (value 0;
     `boundary.py`); `boundary=False` (a path that is never differentiated) leaves them out.
     """
     extra = boundary_dims(f) if boundary else 0
     dims = u.shape[-1] - extra
     if extra and dims != sampler.uniform_dims:
-        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.masked), whose "
+        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.mask), whose "
                          "boundary terms this estimator does not add; use estimate or estimate_grad")
     x, pdf = sampler.warp_with_pdf(u[:, :dims] if extra else u)
     x, pdf = _detach(mode, x, pdf)
