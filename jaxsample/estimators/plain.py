@@ -37,17 +37,14 @@ def over_batch(one: Callable, sampler, key, owner: str):
     between members carry less noise than the members do), and the result's leaves get the
     leading `batch_shape`: exactly `jax.vmap` over the batch, as a TFP user expects.
     """
-    from ..samplers.base import flat_batch
+    from ..samplers.base import over_members, refuse_unbatchable
     from ..uniforms import as_key
 
     key = as_key(key, owner)
-    batch = sampler.batch_shape
-    if not batch:
+    if not sampler.batch_shape:
         return one(sampler, key)
-    if not sampler.batchable:
-        raise ValueError(f"{owner}: {type(sampler).__name__} cannot be batched; got batch_shape {batch}")
-    result = jax.vmap(lambda member: one(member, key))(flat_batch(sampler, batch))
-    return jax.tree_util.tree_map(lambda leaf: leaf.reshape(batch + leaf.shape[1:]), result)
+    refuse_unbatchable(owner, sampler)
+    return over_members(lambda member: one(member, key), sampler)
 
 
 def check_mode(owner: str, mode: str) -> None:
