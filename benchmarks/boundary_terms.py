@@ -62,17 +62,17 @@ def main():
                   f"95 % intervals cover {cover:.2%} of 2000 keys")
     a0, b0, c0 = np.array([0.2, 0.1, 1.0]), np.array([1.0, 0.2, 0.6]), np.array([0.3, 1.0, 0.5])
     g = js.estimate_grad(
-        lambda a: (edges.masked(edges.SphericalTriangle(a, b0, c0), lambda w: 1.0), js.UniformSphere()),
+        lambda a: (edges.mask(edges.SphericalTriangle(a, b0, c0), lambda w: 1.0), js.UniformSphere()),
         jnp.asarray(a0, jnp.float32), jax.random.key(3), 1 << 16)
     reference = [t._central(lambda s: t._solid_angle(a0 + s * e, b0, c0), 0.0) for e in np.eye(3)]
     line("spherical triangle, d solid angle / d vertex a", g.mean, g.stderr, reference)
     box = js.UniformBox(jnp.array([-1.0, -1.0]), jnp.array([1.5, 1.0]))
-    g = js.estimate_grad(lambda p: (edges.masked(edges.Disk(p["centre"], p["radius"]), lambda x: 1.0 + x[0]), box),
+    g = js.estimate_grad(lambda p: (edges.mask(edges.Disk(p["centre"], p["radius"]), lambda x: 1.0 + x[0]), box),
                          {"centre": jnp.array([0.3, -0.2]), "radius": jnp.float32(0.6)}, jax.random.key(5), 1 << 15)
     line("disk, d/dradius of int (1 + x) dA", g.mean["radius"], g.stderr["radius"], 2 * np.pi * 0.6 * 1.3)
     line("disk, d/dcentre", g.mean["centre"], g.stderr["centre"], [np.pi * 0.36, 0.0])
     params = {"alpha": jnp.float32(0.5), "n": jnp.float32(4.0)}
-    make = lambda p: (edges.masked(edges.Cap.from_angle(jnp.array([0.2, 0.0, 1.0]), p["alpha"]), lambda w: 1.0),
+    make = lambda p: (edges.mask(edges.Cap.from_angle(jnp.array([0.2, 0.0, 1.0]), p["alpha"]), lambda w: 1.0),
                       js.PhongLobe(p["n"]))
     for mode in ("attached", "detached"):
         g = js.estimate_grad(make, params, jax.random.key(6), 1 << 16, mode=mode)

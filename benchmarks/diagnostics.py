@@ -58,10 +58,10 @@ def flagged_programs(n):
         z = "" if not math.isfinite(truth) else f", z {(float(est.mean) - truth) / float(est.stderr):+.2f}"
         print(f"| {label} | {float(est.mean):.5g} ± {float(est.stderr):.2g}{z} | {truth:.5g} | "
               f"{'yes' if not bool(est.reliable) else 'no'} (k-hat {float(est.khat):.2f}) |")
-    make = lambda a: (edges.masked(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), a), lambda w: 1.0),
+    make = lambda a: (edges.mask(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), a), lambda w: 1.0),
                       js.UniformSphere())
     g = js.estimate_grad(make, jnp.float32(0.7), next(key), n)
-    print(f"| d/dα ∫ 1[ω·a ≥ cos α] dω (edges.masked) | {float(g.mean):.6f} ± {float(g.stderr):.1g} | "
+    print(f"| d/dα ∫ 1[ω·a ≥ cos α] dω (edges.mask) | {float(g.mean):.6f} ± {float(g.stderr):.1g} | "
           f"{2 * np.pi * np.sin(0.7):.6f} | {'yes' if not bool(g.reliable) else 'no'} |")
     print()
 

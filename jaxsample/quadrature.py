@@ -67,6 +67,7 @@ import numpy as np
 from jax.typing import ArrayLike
 
 from ._core.params import concrete_value
+from .samplers.domain import gauss_legendre_rule
 
 __all__ = [
     "KINDS",
@@ -190,7 +191,6 @@ def _readonly(*arrays):
     return arrays
 
 
-@functools.lru_cache(maxsize=None)
 def gauss_legendre_nodes_weights(n: int) -> tuple[np.ndarray, np.ndarray]:
     """The n-point Gauss–Legendre rule on [-1, 1] in float64 NumPy: (nodes ascending, weights).
 
@@ -201,43 +201,14 @@ def gauss_legendre_nodes_weights(n: int) -> tuple[np.ndarray, np.ndarray]:
 
         ∫_a^b f - Σ w_i f(x_i) = (b - a)^{2n+1} (n!)⁴ / ((2n + 1) ((2n)!)³) · f^{(2n)}(ξ).
 
-    The roots are found by Newton's method on P_n (evaluated by Bonnet's three-term recurrence
-    (k + 1) P_{k+1} = (2k + 1) x P_k - k P_{k-1}) from Tricomi's estimate
-    x_i ≈ cos(π (i - 1/4) / (n + 1/2)), as in Numerical Recipes' `gauleg`. It is an alternative to
-    Golub & Welsch (1969), eigenvalues of the Jacobi matrix, and is O(n²) rather than O(n³).
-    Cached per order; the arrays are read-only.
+    The rule is `jaxsample.samplers.domain.gauss_legendre_rule`, the package's one (the checks'
+    panels use it too): Newton's method on P_n from Tricomi's estimate, as in Numerical Recipes'
+    `gauleg`. Cached per order; the arrays are read-only.
     """
     n = _check_int("n", n, 1)
     if n > _MAX_GAUSS_LEGENDRE_POINTS:
         raise ValueError(f"n must be in [1, {_MAX_GAUSS_LEGENDRE_POINTS}]; got {n}")
-    # Only the roots in (0, 1) (and 0 itself for odd n) are computed; the rule is symmetric.
-    half = (n + 1) // 2
-    i = np.arange(1, half + 1, dtype=np.float64)
-    x = np.cos(np.pi * (i - 0.25) / (n + 0.5))
-    for _ in range(100):
-        p_n, p_prev = _legendre(n, x)
-        derivative = n * (x * p_n - p_prev) / (x * x - 1.0)
-        step = p_n / derivative
-        x = x - step
-        if np.max(np.abs(step)) <= 1e-16:
-            break
-    p_n, p_prev = _legendre(n, x)
-    derivative = n * (x * p_n - p_prev) / (x * x - 1.0)
-    w = 2.0 / ((1.0 - x * x) * derivative * derivative)
-    if n % 2 == 1:
-        x[-1] = 0.0  # the middle root is exactly 0
-    # x is descending in (0, 1]; mirror it for the negative half.
-    nodes = np.concatenate([-x, x[: n // 2][::-1]])
-    weights = np.concatenate([w, w[: n // 2][::-1]])
-    return _readonly(nodes, weights)
-
-
-def _legendre(n: int, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(P_n(x), P_{n-1}(x)) by Bonnet's recurrence."""
-    p_prev, p = np.zeros_like(x), np.ones_like(x)
-    for k in range(n):
-        p_prev, p = p, ((2 * k + 1) * x * p - k * p_prev) / (k + 1)
-    return p, p_prev
+    return gauss_legendre_rule(n)
 
 
 @functools.lru_cache(maxsize=256)

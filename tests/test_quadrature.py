@@ -57,6 +57,18 @@ def test_gauss_legendre_is_cached_and_read_only():
         first[0][0] = 0.0
 
 
+def test_the_checks_panels_use_the_quadrature_rule():
+    """One Gauss–Legendre rule in the package: the checks' panels (`jaxsample.domains`) on [-1, 1]
+    are `gauss_legendre_nodes_weights` bit for bit, at the checks' order and beyond. Catches a
+    second rule (the panels once used NumPy's `leggauss`, whose weights differ in the last bits)."""
+    from jaxsample.domains import GAUSS_ORDER, gauss_legendre_panels
+
+    for order in (1, 2, GAUSS_ORDER, 24, 100):
+        nodes, weights = gauss_legendre_panels(np.array([-1.0, 1.0]), order)
+        reference_nodes, reference_weights = quadrature.gauss_legendre_nodes_weights(order)
+        assert np.array_equal(nodes, reference_nodes) and np.array_equal(weights, reference_weights), order
+
+
 def test_rule_1d_maps_to_interval():
     for kind, n in (("trapezoid", 5), ("simpson", 5), ("gauss_legendre", 5)):
         nodes, weights = rule64(kind, n, -0.5, 2.5)

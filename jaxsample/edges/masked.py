@@ -1,15 +1,15 @@
-"""Integrands that say where they jump: `masked(region, inside, outside)`.
+"""Integrands that say where they jump: `mask(region, inside, outside)`.
 
 An integrand written with a comparison, `jnp.where(x @ a >= cos_alpha, h(x), 0.0)`, has a derivative
 in α of exactly 0 at every sample: the jump is invisible to pathwise, score and measure-valued
 estimators alike, and the gradient of its estimate is 0 ± 0 while the truth is the boundary term
-(`regions.py`). `masked(region, inside, outside)` is the same function, f(x) = inside(x) where x is
+(`regions.py`). `mask(region, inside, outside)` is the same function, f(x) = inside(x) where x is
 in the region and outside(x) (default 0) elsewhere, that also tells the estimators its
 discontinuity: the region's boundary and the jump Δf(y) = inside(y) − outside(y) there. The
 estimators (`estimate`, `estimate_grad`, `expectation`, `expectation_grad`) then add the boundary
 term, sampled on the boundary alongside every interior sample (`estimators/boundary.py`).
 
-Masks nest: `masked(cap, masked(triangle, h))` is h on the intersection; the inner boundary's jump
+Masks nest: `mask(cap, mask(triangle, h))` is h on the intersection; the inner boundary's jump
 counts only where it lies inside the outer region (and an `outside` mask's only outside it). The
 jumps of `inside` and `outside` themselves must be declared this way too: a comparison written in
 them by hand is again invisible. `inside` and `outside` map one sample to one real array.
@@ -22,7 +22,7 @@ from typing import Any, Callable
 
 import jax.numpy as jnp
 
-__all__ = ["Masked", "masked", "discontinuities", "boundary_dims"]
+__all__ = ["Masked", "mask", "discontinuities", "boundary_dims"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,16 +53,18 @@ class Masked:
         return found
 
 
-def masked(region, inside: Callable, outside: Callable | None = None) -> Masked:
+def mask(region, inside: Callable, outside: Callable | None = None) -> Masked:
     """The integrand inside(x) on `region` (a `Cap`, `SphericalTriangle`, `Disk` or any object with
     `indicator`, `boundary_dims` and `boundary_sample`), outside(x) (default 0) elsewhere, whose
-    jump across the region's boundary the gradient estimators add (see the module docstring)."""
+    jump across the region's boundary the gradient estimators add (see the module docstring).
+
+    Named `mask`, not `masked`, so that `jaxsample.edges.masked` is this module and nothing hides it."""
     for name in ("indicator", "boundary_sample", "boundary_dims"):
         if not hasattr(region, name):
-            raise TypeError(f"masked: parameter 'region' must have '{name}' (a jaxsample.edges region); "
+            raise TypeError(f"mask: parameter 'region' must have '{name}' (a jaxsample.edges region); "
                             f"got {type(region).__name__}")
     if not callable(inside) or (outside is not None and not callable(outside)):
-        raise TypeError("masked: parameters 'inside' and 'outside' must be functions of one sample")
+        raise TypeError("mask: parameters 'inside' and 'outside' must be functions of one sample")
     return Masked(region, inside, outside)
 
 

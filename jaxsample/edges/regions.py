@@ -37,6 +37,7 @@ import numpy as np
 
 from .._core.params import check_parameter, concrete_value
 from .._core.pytree import Pytree, parameter
+from ..samplers._spherical import components, fan_solid_angle, polygon_inside, sub
 from ..samplers.frame import Frame
 
 __all__ = ["Cap", "SphericalTriangle", "SphericalPolygon", "Disk"]
@@ -114,14 +115,12 @@ def _polygon_vertices(vertices):
     return _unit(jnp.asarray(vertices))
 
 
-def _polygon_indicator(vertices, x):
-    """1 inside a convex spherical polygon (edges v_k → v_{k+1} all turning the same way), else 0."""
-    count = vertices.shape[0]
-    orientation = jnp.sign(jnp.sum(vertices[0] * jnp.cross(vertices[1], vertices[2]), axis=-1))
-    inside = orientation != 0  # a degenerate (traced) polygon holds nothing
-    for k in range(count):
-        inside = inside & (orientation * jnp.sum(x * jnp.cross(vertices[k], vertices[(k + 1) % count]), -1) >= 0)
-    return inside.astype(jnp.result_type(x, float))
+def _polygon_indicator(points, x):
+    """1 inside a convex spherical polygon (edges p_k → p_{k+1} all turning the same way; a
+    degenerate, traced, polygon holds nothing), boundary included, else 0: the inside test of
+    `samplers._spherical.polygon_inside` on the vertices as given and their exact edges."""
+    edges = [sub(q, p) for p, q in zip(points, points[1:] + points[:1])]
+    return polygon_inside(components(x), points, edges, 0.0).astype(jnp.result_type(x, float))
 
 
 def _polygon_boundary(vertices, t):
@@ -167,27 +166,29 @@ def _polygon_boundary(vertices, t):
     return y, normal, pdf
 
 
-def _polygon_solid_angle(vertices):
-    """Solid angle of a convex spherical polygon: its fan of triangles from vertex 0, each by
-    Van Oosterom & Strackee (1983), tan(Ω/2) = |a·(b×c)| / (1 + a·b + b·c + c·a)."""
-    total = 0.0
-    a = vertices[0]
-    for k in range(1, vertices.shape[0] - 1):
-        b, c = vertices[k], vertices[k + 1]
-        triple = jnp.abs(jnp.sum(a * jnp.cross(b, c), axis=-1))
-        denominator = 1.0 + jnp.sum(a * b, -1) + jnp.sum(b * c, -1) + jnp.sum(c * a, -1)
-        total = total + 2.0 * jnp.arctan2(triple, denominator)
-    return total
+def _polygon_solid_angle(points):
+    """Solid angle of a convex spherical polygon from its vertices as given (points of R³, not
+    normalised): the fan of triangles from the first, by `samplers._spherical.fan_solid_angle`
+    (Van Oosterom & Strackee on the points and their exact edges; unit vertices would lose a small
+    polygon's edges to rounding, and b × c of close vertices cancels)."""
+    apex = points[0]
+    return fan_solid_angle(apex, [sub(p, apex) for p in points[1:]])
 
 
 class _ConvexSpherical(Pytree):
-    """What a convex spherical polygon does with its (K, 3) unit vertices (`_vertices()`)."""
+    """What a convex spherical polygon does with its (K, 3) unit vertices (`_vertices()`, for the
+    boundary's arcs) and its vertices as given (`_points()`, for the solid angle and the inside
+    test)."""
+
+    def _points(self):
+        """The vertices as given, as component tuples."""
+        return [components(v) for v in self.vertices]
 
     def solid_angle(self):
-        return _polygon_solid_angle(self._vertices())
+        return _polygon_solid_angle(self._points())
 
     def indicator(self, x):
-        return _polygon_indicator(self._vertices(), x)
+        return _polygon_indicator(self._points(), x)
 
     def boundary_sample(self, t):
         return _polygon_boundary(self._vertices(), t)
@@ -198,7 +199,7 @@ class SphericalTriangle(_ConvexSpherical):
     ω = (λ_a a + λ_b b + λ_c c)/|...| with λ ≥ 0, i.e. the directions in which a point sees the flat
     triangle with vertices at a, b, c relative to it. Its boundary is three great-circle arcs.
 
-    Solid angle by Van Oosterom & Strackee (1983): tan(Ω/2) = |a·(b×c)| / (1 + a·b + b·c + c·a).
+    Solid angle by Van Oosterom & Strackee (1983) on a, b, c as given (`samplers._spherical`).
     The boundary is sampled uniformly by arc length over the whole perimeter (an edge in proportion
     to its length, then a point along its great circle by slerp); the outward normal on an edge is
     the unit normal of its great-circle plane, signed away from the opposite vertex.
@@ -216,6 +217,9 @@ class SphericalTriangle(_ConvexSpherical):
 
     def _vertices(self):
         return jnp.stack([_unit(self.a), _unit(self.b), _unit(self.c)])
+
+    def _points(self):
+        return [components(self.a), components(self.b), components(self.c)]
 
 
 class SphericalPolygon(_ConvexSpherical):

@@ -48,7 +48,7 @@ def refuse_edges(owner: str, *functions) -> None:
     """ValueError for an estimator that does not add boundary terms, given an integrand that
     declares discontinuities: its gradient would silently miss them."""
     if any(boundary_dims(f) for f in functions):
-        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.masked), whose "
+        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.mask), whose "
                          "boundary terms this estimator does not add; use estimate or estimate_grad (or, for a "
                          "value only, pass the plain function f.__call__)")
 
@@ -77,7 +77,7 @@ def sampler_flow(sampler, owner: str, remedy: str):
     try:
         jax.eval_shape(sampler.inverse, jax.ShapeDtypeStruct((1,) + tuple(sampler.event_shape), jnp.float32))
     except NotImplementedError:
-        raise ValueError(f"{owner}: the integrand declares a discontinuity ('jaxsample.edges.masked') and "
+        raise ValueError(f"{owner}: the integrand declares a discontinuity ('jaxsample.edges.mask') and "
                          f"{type(sampler).__name__} has no inverse, so the motion of its samples across "
                          f"the boundary is unknown; {remedy}") from None
 

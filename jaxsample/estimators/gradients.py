@@ -22,7 +22,8 @@ Two different questions share the words "gradient of a Monte Carlo estimate" (Mo
      held constant, with a baseline b that does not depend on x (a constant, or the leave-one-out
      mean of the other samples). Needs only log p differentiable in θ; g may be a black box.
 
-   - "measure_valued" (Mohamed et al. 2020, section 6), for the Phong lobe's exponent: the
+   - "measure_valued" (Mohamed et al. 2020, section 6), for a sampler that defines
+     `measure_valued_terms`, such as the Phong lobe's exponent: the
      derivative of the density in n is (1/m)(p_n - q_n), q_n the density of cos θ as the product of
      two draws, so ∇n E[g] = (1/m)(E_{p_n}[g] - E_{q_n}[g]): g need not be differentiable and no
      density is differentiated (`PhongLobe.measure_valued_pair`; unbiased, samples held constant).
@@ -99,20 +100,15 @@ def uniform_dims(sampler, gradient: str) -> int:
 
 
 def _measure_valued_values(g, sampler, u):
-    """Surrogate g(x̄) + (n - sg(n)) · sg(c (g(x̄) - g(x̄'))): its value is g(x̄), its derivative
-    in the exponent n the measure-valued estimator, and g's own parameters differentiate through
-    g(x̄) (samples x̄, x̄' held constant)."""
-    from ..samplers.phong import PhongLobe
-
-    if not isinstance(sampler, PhongLobe):
-        raise ValueError("expectation: gradient='measure_valued' is available for PhongLobe (its exponent); "
-                         f"got {type(sampler).__name__}, which has no measure-valued decomposition here: "
-                         "use 'pathwise' or 'score'")
-    x, x_product, c = sampler.measure_valued_pair(u)
+    """Surrogate g(x̄) + (θ - sg(θ)) · sg(c (g(x̄) - g(x̄'))): its value is g(x̄), its derivative
+    in the sampler's parameter θ the measure-valued estimator, and g's own parameters differentiate
+    through g(x̄) (samples x̄, x̄' held constant). θ, x̄, x̄' and c are the sampler's
+    (`Sampler.measure_valued_terms`; a sampler without a decomposition raises there)."""
+    parameter, x, x_product, c = sampler.measure_valued_terms(u)
     x, x_product = jax.lax.stop_gradient((x, x_product))
     gx, gx_product = jax.vmap(g)(x), jax.vmap(g)(x_product)
-    exponent = jnp.asarray(sampler.exponent, gx.dtype)
-    tangent = exponent - jax.lax.stop_gradient(exponent)
+    parameter = jnp.asarray(parameter, gx.dtype)
+    tangent = parameter - jax.lax.stop_gradient(parameter)
     return gx + tangent * jax.lax.stop_gradient(jnp.asarray(c, gx.dtype) * (gx - gx_product))
 
 
@@ -132,7 +128,7 @@ def _packed(g, layout: IntegrandLayout, dtype):
     if layout.plain:
         return g
     if boundary_dims(g):
-        raise TypeError("expectation: an integrand with declared discontinuities (jaxsample.edges.masked) "
+        raise TypeError("expectation: an integrand with declared discontinuities (jaxsample.edges.mask) "
                         "must return one real array")
     return lambda x: layout.pack(jax.tree_util.tree_map(lambda v: jnp.asarray(v)[None], g(x)), dtype)[0]
 
@@ -164,7 +160,7 @@ def expectation_values(g: Callable[[jax.Array], jax.Array], sampler, u: jax.Arra
 def _surrogate_values(g, sampler, u, gradient, baseline):
     """`expectation_values` for a g whose value is one real array (packed).
 
-    A g with declared discontinuities (`jaxsample.edges.masked`) reads boundary uniforms from the
+    A g with declared discontinuities (`jaxsample.edges.mask`) reads boundary uniforms from the
     last `boundary_dims(g)` columns and adds the boundary term of ∫ g p dμ (`boundary.py`): the
     pathwise samples move with θ, the score and measure-valued ones are held constant.
     """
@@ -195,8 +191,9 @@ def expectation(g: Callable[[jax.Array], jax.Array], sampler, key: jax.Array, n:
       sampler: any `jaxsample.Sampler`; its parameters are the θ that `jax.grad` sees.
       key, n, uniforms, mesh, chunk_size, dtype: as in `jaxsample.estimate`.
       gradient: "pathwise" (default; through the warp), "score" (through log p of a detached
-        sample) or "measure_valued" (PhongLobe only: the exponent's derivative as a scaled
-        difference of two densities, `PhongLobe.measure_valued_pair`; one more uniform per sample).
+        sample) or "measure_valued" (samplers that define `measure_valued_terms`, PhongLobe's
+        exponent among them: the derivative as a scaled difference of two densities; one more
+        uniform per sample).
         All have the value mean(g); see the module docstring for when each is unbiased.
       baseline: score only. None (no baseline), a constant (array broadcastable to g's value, or
         for a pytree-valued g a matching pytree; held constant: a baseline that depends on θ is

@@ -36,17 +36,14 @@ def over_batch(one: Callable, sampler, key, owner: str):
     between members carry less noise than the members do), and the result's leaves get the
     leading `batch_shape`: exactly `jax.vmap` over the batch, as a TFP user expects.
     """
-    from ..samplers.base import flat_batch
+    from ..samplers.base import over_members, refuse_unbatchable
     from ..uniforms import as_key
 
     key = as_key(key, owner)
-    batch = sampler.batch_shape
-    if not batch:
+    if not sampler.batch_shape:
         return one(sampler, key)
-    if not sampler.batchable:
-        raise ValueError(f"{owner}: {type(sampler).__name__} cannot be batched; got batch_shape {batch}")
-    result = jax.vmap(lambda member: one(member, key))(flat_batch(sampler, batch))
-    return jax.tree_util.tree_map(lambda leaf: leaf.reshape(batch + leaf.shape[1:]), result)
+    refuse_unbatchable(owner, sampler)
+    return over_members(lambda member: one(member, key), sampler)
 
 
 def check_mode(owner: str, mode: str) -> None:
@@ -84,14 +81,14 @@ def packed_values(f, sampler, u: jax.Array, mode: str, *, owner: str = "estimate
     """(Y packed by the integrand rule, its layout): Y_i = f(x_i)/p(x_i) for every component of
     f's value, as one real (count, *out_shape) array (f's own values for one real array).
 
-    An f that declares discontinuities (`jaxsample.edges.masked`) reads its boundary samples from
+    An f that declares discontinuities (`jaxsample.edges.mask`) reads its boundary samples from
     the last `boundary_dims(f)` columns of u and adds their boundary terms (value 0;
     `boundary.py`); `boundary=False` (a path that is never differentiated) leaves them out.
     """
     extra = boundary_dims(f) if boundary else 0
     dims = u.shape[-1] - extra
     if extra and dims != sampler.uniform_dims:
-        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.masked), whose "
+        raise ValueError(f"{owner}: the integrand declares discontinuities (jaxsample.edges.mask), whose "
                          "boundary terms this estimator does not add; use estimate or estimate_grad")
     x, pdf = sampler.warp_with_pdf(u[:, :dims] if extra else u)
     x, pdf = _detach(mode, x, pdf)

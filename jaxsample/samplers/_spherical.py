@@ -78,40 +78,59 @@ def safe_atan2(y, x):
 
 def triangle_solid_angle(a, e1, e2):
     """Solid angle of the triangle (a, a + e1, a + e2) seen from the origin (a need not be unit;
-    vectors as component tuples).
+    vectors as component tuples): `van_oosterom_strackee` with the triple product a · (e1 × e2)
+    formed from the edges (b × c of two nearly parallel vectors would cancel)."""
+    b, c = add(a, e1), add(a, e2)
+    return van_oosterom_strackee(jnp.abs(dot(a, cross(e1, e2))), length(a), length(b), length(c),
+                                 dot(a, b), dot(a, c), dot(b, c))
 
-    Van Oosterom & Strackee (1983), for vectors of any length: with b = a + e1, c = a + e2,
+
+def van_oosterom_strackee(triple, la, lb, lc, ab, ac, bc):
+    """Solid angle of a triangle (a, b, c) seen from the origin, from triple = |det(a, b, c)| (formed
+    by the caller from edges, never as a · (b × c)), the lengths |a|, |b|, |c| and the dot products
+    a·b, a·c, b·c: the package's one Van Oosterom–Strackee formula (a caller that has some of these
+    passes its own).
+
+    Van Oosterom & Strackee (1983), for vectors of any length:
 
         tan(Ω/2) = |a · (b × c)| / (|a||b||c| + (a·b)|c| + (a·c)|b| + (b·c)|a|),
 
     taken as Ω = 2 atan2(numerator, denominator), which holds for Ω up to 2π (the denominator is
-    negative beyond π). The triple product is formed as a · (e1 × e2) from the edges: b × c of two
-    nearly parallel vectors would cancel. The denominator has no cancellation for small triangles
-    (it is about 4|a|³ there). A triangle whose plane holds the origin has Ω = 0 (the limit 2π of
-    the formula from a viewer just off the plane inside the triangle is not taken: the directions
-    that meet such a triangle form a great circle).
+    negative beyond π). The denominator has no cancellation for small triangles (it is about
+    4|a|³ there). A triangle whose plane holds the origin has Ω = 0 (the limit 2π of the formula
+    from a viewer just off the plane inside the triangle is not taken: the directions that meet
+    such a triangle form a great circle).
     """
-    b, c = add(a, e1), add(a, e2)
-    la, lb, lc = length(a), length(b), length(c)
-    triple = jnp.abs(dot(a, cross(e1, e2)))
-    denominator = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la
+    denominator = la * lb * lc + ab * lc + ac * lb + bc * la
     return jnp.where(triple > 0, 2.0 * safe_atan2(triple, denominator), 0.0)
 
 
-def polygon_inside(x, vertices, edges, tolerance):
+def fan_solid_angle(apex, spokes):
+    """Solid angle of the convex polygon (apex, apex + spokes[0], apex + spokes[1], ...) seen from
+    the origin: its fan of triangles from the apex, each from the exact edges `spokes`."""
+    total = triangle_solid_angle(apex, spokes[0], spokes[1])
+    for e1, e2 in zip(spokes[1:-1], spokes[2:]):
+        total = total + triangle_solid_angle(apex, e1, e2)
+    return total
+
+
+def polygon_inside(x, vertices, edges, tolerance, xp=jnp):
     """Whether unit directions x lie in the convex spherical polygon with `vertices` (points of R³,
     in order either way round) and `edges[k] = vertices[k+1] - vertices[k]` (passed in, so that a
-    caller with exact edges uses them), to within `tolerance` radians of an edge's great circle.
+    caller with exact edges uses them), to within `tolerance` radians of an edge's great circle
+    (component tuples; the package's one inside test).
 
     Edge k's great circle has the normal n_k = v_k × e_k (= v_k × v_{k+1}, formed from the edge so
     that close vertices do not cancel); x is inside when σ x·n_k >= -tolerance |n_k| for every k,
-    σ the orientation of the polygon (the sign of v_0 · (e_0 × e_1)).
+    σ the orientation of the polygon (the sign of v_0 · (e_0 × e_1)); a degenerate polygon (σ = 0)
+    holds nothing. `xp` is the array namespace: `numpy` for the checks' float64 domain.
     """
-    orientation = jnp.sign(dot(vertices[0], cross(edges[0], edges[1])))
+    size = length if xp is jnp else (lambda p: xp.sqrt(dot(p, p)))
+    orientation = xp.sign(dot(vertices[0], cross(edges[0], edges[1])))
     inside = orientation != 0
     for v, e in zip(vertices, edges):
         normal = cross(v, e)
-        inside = inside & (orientation * dot(x, normal) >= -tolerance * length(normal))
+        inside = inside & (orientation * dot(x, normal) >= -tolerance * size(normal))
     return inside
 
 
@@ -348,10 +367,7 @@ class SphericalPolygon:
         """Unit length within 1e-5 and inside every edge's great circle within `tolerance` radians."""
         x = np.asarray(x, np.float64)
         v = np.asarray(self.vertices, np.float64)
-        sign = self._orientation()
         norm = np.linalg.norm(x, axis=-1)
-        inside = np.abs(norm - 1.0) <= 1e-5
-        for k in range(len(v)):
-            normal = np.cross(v[k], v[(k + 1) % len(v)] - v[k])
-            inside &= sign * (x @ normal) >= -tolerance * np.linalg.norm(normal) * norm
-        return inside
+        edges = [tuple(v[(k + 1) % len(v)] - v[k]) for k in range(len(v))]
+        inside = polygon_inside(tuple(np.moveaxis(x, -1, 0)), [tuple(p) for p in v], edges, tolerance * norm, xp=np)
+        return (np.abs(norm - 1.0) <= 1e-5) & inside

@@ -119,9 +119,7 @@ def _apply(sampler, method, takes_u: bool, point, args, kwargs, compiled):
     if not batch:
         sampler, poison = _checked_with_poison(sampler)
         return _poison_outputs(method(sampler, point, *args, **kwargs), poison)
-    if not sampler.batchable:
-        raise ValueError(f"{type(sampler).__name__}: cannot be batched (its tables are built per distribution); "
-                         f"got parameters with batch_shape {batch}; build one per member")
+    refuse_unbatchable("", sampler)
     core = (sampler.uniform_dims,) if takes_u else tuple(sampler.event_shape)
     point = jnp.asarray(point)
     full = tuple(jnp.broadcast_shapes(point.shape, batch + core))
@@ -130,8 +128,29 @@ def _apply(sampler, method, takes_u: bool, point, args, kwargs, compiled):
     size = int(np.prod(batch, dtype=np.int64))
     points = jnp.broadcast_to(point, full).reshape((count, size) + core)
     one = lambda member, p: _apply(member, method, takes_u, p, args, kwargs, None)
-    out = jax.vmap(one, in_axes=(0, 1), out_axes=1)(flat_batch(sampler, batch), points)
-    return jax.tree_util.tree_map(lambda o: o.reshape(sample + batch + o.shape[2:]), out)
+    out = over_members(one, sampler, points, axis=1)
+    return jax.tree_util.tree_map(lambda o: o.reshape(sample + o.shape[1:]), out)
+
+
+def refuse_unbatchable(owner: str, sampler) -> None:
+    """ValueError for a batch of a sampler whose tables are built per distribution (`batchable` False)."""
+    if sampler.batch_shape and not sampler.batchable:
+        raise ValueError(f"{owner + ': ' if owner else ''}{type(sampler).__name__} cannot be batched (its tables are "
+                         f"built per distribution); got parameters with batch_shape {sampler.batch_shape}; "
+                         "build one per member")
+
+
+def over_members(one, sampler, *operands, axis: int = 0):
+    """`one(member, *operands)` for each member of a batched sampler: the package's one batch map.
+
+    `jax.vmap` over the flattened batch (`flat_batch`: every member's parameters at axis 0), each
+    operand split at `axis` (its flat batch there), and every leaf of the result with the flat
+    batch at `axis` reshaped to `batch_shape` there. The point methods (`_apply`, and so `sample` of
+    a batch) and the estimators (`jaxsample.estimators.plain.over_batch`) map through it."""
+    batch = sampler.batch_shape
+    in_axes = (0,) + (axis,) * len(operands)
+    out = jax.vmap(one, in_axes=in_axes, out_axes=axis)(flat_batch(sampler, batch), *operands)
+    return jax.tree_util.tree_map(lambda o: o.reshape(o.shape[:axis] + batch + o.shape[axis + 1:]), out)
 
 
 
@@ -235,6 +254,17 @@ class Sampler(Pytree):
         boundary terms subtract, `jaxsample.estimators.boundary`). A class overrides it where u cannot
         carry what the derivative needs (`PhongLobe`: the lobe's tail, where u₀ rounds to 1)."""
         return self.warp(jax.lax.stop_gradient(self.inverse(jax.lax.stop_gradient(x))))
+
+    def measure_valued_terms(self, u: jax.Array):
+        """(θ, x, x', c) for `gradient="measure_valued"` (`jaxsample.expectation`), from uniforms u of
+        shape (..., uniform_dims + 1): the derivative in the parameter θ as a scaled difference of
+        two expectations, d/dθ E_{p_θ}[g] = c (E[g(x)] - E[g(x')]), x ~ p_θ and x' drawn from the
+        second density of the decomposition (Mohamed et al. 2020, section 6). A class with such a
+        decomposition overrides this (`PhongLobe`: its exponent); the default has none and raises
+        ValueError."""
+        raise ValueError(f"{type(self).__name__} has no measure-valued decomposition (gradient='measure_valued' "
+                         "needs a sampler that defines measure_valued_terms, as PhongLobe does for its exponent): "
+                         "use 'pathwise' or 'score'")
 
     def prob(self, x: jax.Array) -> jax.Array:
         """The density at `x` (the name TFP, distrax and NumPyro use): `pdf`, batched and checked."""

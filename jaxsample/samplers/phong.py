@@ -92,6 +92,11 @@ class PhongLobe(Sampler):
         x_product = direction_from_one_minus_cos(-jnp.expm1(log_cos_product), u[..., 1])
         return x, x_product, 1.0 / (self.exponent + 1.0)
 
+    def measure_valued_terms(self, u):
+        """(n, x, x', 1/(n + 1)): the measure-valued decomposition in the exponent n
+        (`measure_valued_pair`), for `gradient="measure_valued"`."""
+        return (self.exponent, *self.measure_valued_pair(u))
+
     @point_method
     def log_pdf(self, x):
         n = self.exponent

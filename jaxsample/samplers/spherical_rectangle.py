@@ -12,8 +12,8 @@ import numpy as np
 from .base import Sampler, point_method
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.pytree import parameter
-from ._spherical import (SphericalPolygon, add, check_vectors, components, cross, dot, edge_tolerance, length, normalize,
-                         polygon_inside, safe_atan2, same_sign_difference, scale, stack, sub, triangle_solid_angle, where)
+from ._spherical import (SphericalPolygon, add, check_vectors, components, cross, dot, edge_tolerance, fan_solid_angle, length,
+                         normalize, polygon_inside, safe_atan2, same_sign_difference, scale, stack, sub, where)
 
 # |edge_u · edge_v| must be at most this fraction of |edge_u| |edge_v|: perpendicular to float32
 # rounding (edges rotated by a float32 matrix are perpendicular to ~1e-7).
@@ -43,7 +43,7 @@ def _sub_solid_angle(x0, y0, z0, width, height):
     zero = jnp.zeros_like(width)
     corner = (x0 + zero, y0 + zero, z0 + zero)
     along_x, diagonal, along_y = (width, zero, zero), (width, zero + height, zero), (zero, zero + height, zero)
-    return triangle_solid_angle(corner, along_x, diagonal) + triangle_solid_angle(corner, diagonal, along_y)
+    return fan_solid_angle(corner, (along_x, diagonal, along_y))
 
 
 class SphericalRectangle(Sampler):
@@ -126,8 +126,7 @@ class SphericalRectangle(Sampler):
     def solid_angle(self):
         """Ω in [0, 2π): the rectangle's two triangles by Van Oosterom & Strackee; 0 edge-on."""
         corner, eu, ev = self._vectors()
-        diagonal = add(eu, ev)
-        return triangle_solid_angle(corner, eu, diagonal) + triangle_solid_angle(corner, diagonal, ev)
+        return fan_solid_angle(corner, (eu, add(eu, ev), ev))
 
     def _local(self):
         """The frame (x̂ ∥ edge_u, ŷ ∥ edge_v, ẑ = x̂ × ŷ) and the rectangle in it: x₀, y₀, z₀, d = |z₀|,

@@ -14,7 +14,8 @@ from .._core.numerics import safe_div, safe_sqrt
 from .._core.pytree import parameter
 from ._spherical import (SphericalPolygon, add, bilinear_inverse, bilinear_pdf, bilinear_warp, check_vectors,
                          components, cosine_weight, cross, dot, edge_tolerance, length, normalize, polygon_inside,
-                         safe_atan2, scale, stack, sub, triangle_solid_angle, where)
+                         safe_atan2, scale, stack, sub, triangle_solid_angle,
+                         van_oosterom_strackee, where)
 
 # Vertices whose planar triangle has doubled area below this many float64 epsilons times its
 # longest squared edge are collinear to rounding: degenerate (as for UniformTriangle).
@@ -30,15 +31,14 @@ def _triple(a, b, c):
 
 
 def _geometry(a, b, c):
-    """The per-triangle quantities of the warp and its inverse (`_edge_fraction`); Ω as in
-    `triangle_solid_angle`, written out here to share its lengths and triple product."""
+    """The per-triangle quantities of the warp and its inverse (`_edge_fraction`); Ω by
+    `van_oosterom_strackee` from the lengths and the triple product shared with them."""
     e = sub(c, a)
     la, lb, lc = length(a), length(b), length(c)
     triple = _triple(a, b, c)
     ab = dot(a, b)
-    denominator = la * lb * lc + ab * lc + dot(a, c) * lb + dot(b, c) * la
     return dict(a=a, b=b, c=c, e=e, la=la, lb=lb, triple=triple,
-                omega=jnp.where(triple > 0, 2.0 * safe_atan2(triple, denominator), 0.0),
+                omega=van_oosterom_strackee(triple, la, lb, lc, ab, dot(a, c), dot(b, c)),
                 k=la * lb + ab,
                 y=lb * dot(a, e) + la * dot(b, e),
                 # (a × b) · (c × a), from the edges: a × b = a × (b - a), c × a = e × a.

@@ -60,7 +60,7 @@ def _central(fn, x, h=1e-5):
 
 def _cap_grad(sampler, g, key, n, alpha=0.7, beta=0.4, mode="attached"):
     def make(p):
-        return edges.masked(edges.Cap.from_angle(_axis(p["beta"]), p["alpha"]), g), sampler
+        return edges.mask(edges.Cap.from_angle(_axis(p["beta"]), p["alpha"]), g), sampler
     return js.estimate_grad(make, {"alpha": jnp.float32(alpha), "beta": jnp.float32(beta)}, key, n, mode=mode)
 
 
@@ -83,7 +83,7 @@ def test_cap_cut_by_the_horizon_under_cosine_sampling():
     fd_beta = _central(lambda b: _cap_quadrature(alpha, b, lambda w: np.ones(w.shape[:-1]), hemisphere=True,
                                                  nodes=64), beta)
     # The term's value is 0: the masked estimate is the plain estimate of ∫_{H²} 1[cap] dω.
-    value = js.estimate(edges.masked(edges.Cap.from_angle(_axis(jnp.float32(beta)), alpha), lambda w: 1.0),
+    value = js.estimate(edges.mask(edges.Cap.from_angle(_axis(jnp.float32(beta)), alpha), lambda w: 1.0),
                         js.CosineHemisphere(), jax.random.key(11), 1 << 14)
     area = _cap_quadrature(alpha, beta, lambda w: np.ones(w.shape[:-1]), hemisphere=True, nodes=64)
     assert abs(float(value.mean) - area) < 5.0 * float(value.stderr)  # false failure 6e-7
@@ -129,7 +129,7 @@ def test_spherical_triangle_vertex_gradient_matches_van_oosterom_strackee():
     a0, b0, c0 = np.array([0.2, 0.1, 1.0]), np.array([1.0, 0.2, 0.6]), np.array([0.3, 1.0, 0.5])
 
     def make(a):
-        return edges.masked(edges.SphericalTriangle(a, b0, c0), lambda w: 1.0), js.UniformSphere()
+        return edges.mask(edges.SphericalTriangle(a, b0, c0), lambda w: 1.0), js.UniformSphere()
 
     g = js.estimate_grad(make, jnp.asarray(a0, jnp.float32), jax.random.key(3), 1 << 16)
     reference = np.array([_central(lambda t: _solid_angle(a0 + t * e, b0, c0), 0.0) for e in np.eye(3)])
@@ -151,7 +151,7 @@ def test_spherical_quadrilateral_vertex_gradient_matches_its_fan_of_triangles():
 
     def make(corner):
         polygon = edges.SphericalPolygon(jnp.asarray(vertices, jnp.float32).at[2].set(corner))
-        return edges.masked(polygon, lambda w: 1.0), js.UniformSphere()
+        return edges.mask(polygon, lambda w: 1.0), js.UniformSphere()
 
     g = js.estimate_grad(make, jnp.asarray(vertices[2], jnp.float32), jax.random.key(12), 1 << 15)
     reference = np.array([_central(lambda t: fan(vertices + t * np.outer(np.eye(4)[2], e)), 0.0) for e in np.eye(3)])
@@ -168,7 +168,7 @@ def test_disk_in_the_plane_centre_and_radius():
     box = js.UniformBox(jnp.array([-1.0, -1.0]), jnp.array([1.5, 1.0]))
 
     def make(p):
-        return edges.masked(edges.Disk(p["centre"], p["radius"]), lambda x: 1.0 + x[0]), box
+        return edges.mask(edges.Disk(p["centre"], p["radius"]), lambda x: 1.0 + x[0]), box
 
     g = js.estimate_grad(make, {"centre": jnp.asarray(centre, jnp.float32), "radius": jnp.float32(radius)},
                          jax.random.key(5), 1 << 15)
@@ -183,7 +183,7 @@ def test_attached_samples_that_move_across_a_fixed_edge():
     With it: d/dn = 0 and d/dα = 2π sin α (5 sigma: false failure 6e-7 each); detached agrees."""
     def make(p):
         cap = edges.Cap.from_angle(jnp.array([0.2, 0.0, 1.0]), p["alpha"])
-        return edges.masked(cap, lambda w: 1.0), js.PhongLobe(p["n"])
+        return edges.mask(cap, lambda w: 1.0), js.PhongLobe(p["n"])
 
     params = {"alpha": jnp.float32(0.5), "n": jnp.float32(4.0)}
     for mode in ("attached", "detached"):
@@ -205,7 +205,7 @@ def test_expectation_pathwise_and_score_under_a_moving_lobe():
 
     def make(p):
         cap = edges.Cap.from_angle(_axis(jnp.float32(beta)), p["alpha"])
-        return edges.masked(cap, lambda w: 1.0), js.PhongLobe(p["n"])
+        return edges.mask(cap, lambda w: 1.0), js.PhongLobe(p["n"])
 
     params = {"alpha": jnp.float32(0.4), "n": jnp.float32(6.0)}
     reference = {"n": _central(lambda n: value(n, 0.4), 6.0), "alpha": _central(lambda a: value(6.0, a), 0.4)}
@@ -223,7 +223,7 @@ def test_nested_masks_count_inside_only():
     def make(p):
         outer = edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), p["outer"])
         inner = edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), p["inner"])
-        return edges.masked(outer, edges.masked(inner, lambda w: 1.0)), js.UniformSphere()
+        return edges.mask(outer, edges.mask(inner, lambda w: 1.0)), js.UniformSphere()
     g = js.estimate_grad(make, {"outer": jnp.float32(0.9), "inner": jnp.float32(0.5)}, jax.random.key(9), 1 << 12)
     np.testing.assert_allclose(g.mean["inner"], TWO_PI * np.sin(0.5), rtol=1e-4)
     np.testing.assert_allclose(g.mean["outer"], 0.0, atol=1e-5)
@@ -231,7 +231,7 @@ def test_nested_masks_count_inside_only():
 
 def test_errors_name_what_is_wrong():
     with pytest.raises(TypeError, match="region"):
-        edges.masked(object(), lambda w: 1.0)
+        edges.mask(object(), lambda w: 1.0)
     with pytest.raises(ValueError, match="one_minus_cos"):
         edges.Cap(jnp.array([0.0, 0.0, 1.0]), 3.0)
     with pytest.raises(ValueError, match="alpha"):
@@ -244,6 +244,18 @@ def test_errors_name_what_is_wrong():
         edges.Disk(jnp.array([0.0, 0.0, 0.0]), 1.0)
     with pytest.raises(ValueError, match="great circle"):
         edges.SphericalTriangle(jnp.array([1.0, 0.0, 0.0]), jnp.array([0.0, 1.0, 0.0]), jnp.array([1.0, 1.0, 0.0]))
-    f = edges.masked(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), 0.5), lambda w: 1.0)
+    f = edges.mask(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), 0.5), lambda w: 1.0)
     with pytest.raises(ValueError, match="boundary terms"):
         js.estimate_mis(f, [js.UniformSphere(), js.CosineHemisphere()], jax.random.key(10), [256, 256])
+
+
+def test_the_mask_function_does_not_hide_its_module():
+    """`jaxsample.edges.masked` is the module edges/masked.py and `jaxsample.edges.mask` its function.
+    Catches the function named like its module, which replaced the module's attribute on the package
+    (`jaxsample.edges.masked` was a function, and the module reachable only through sys.modules)."""
+    import importlib
+    import types
+
+    module = importlib.import_module("jaxsample.edges.masked")
+    assert isinstance(edges.masked, types.ModuleType) and edges.masked is module
+    assert edges.mask is module.mask and "mask" in edges.__all__ and "masked" not in edges.__all__

@@ -267,7 +267,7 @@ def test_zero_variance_stderr_is_floored_at_rounding():
 def test_cap_indicator_derivative_is_no_longer_zero():
     """d/dα ∫ 1[ω·a >= cos α] dω = 2π sin α: a masked integrand's boundary term makes it right."""
     def make(alpha):
-        return edges.masked(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), alpha), lambda w: 1.0), js.UniformSphere()
+        return edges.mask(edges.Cap.from_angle(jnp.array([0.0, 0.0, 1.0]), alpha), lambda w: 1.0), js.UniformSphere()
     g = js.estimate_grad(make, jnp.float32(0.7), next_key(), 1 << 12)
     assert float(g.mean) == pytest.approx(2 * np.pi * np.sin(0.7), rel=1e-4) and bool(g.reliable)
 

@@ -129,6 +129,34 @@ def test_tables_that_cannot_batch_say_so():
         js.PiecewiseConstant1D(np.ones((2, 3)))
 
 
+def test_a_two_dimensional_batch_maps_the_same_way_for_points_samples_and_estimates():
+    """One batch map (`samplers.base.over_members`) serves the point methods, `sample` and the
+    estimators: for a (2, 3) batch of lobes, `prob` at (4, 2, 3, 3) points, `sample` (the stream's
+    points in C order over sample and batch shape) and `estimate` give each member's own values at
+    its own index, bit for bit. Catches the map putting the flat
+    batch at the wrong axis, or unflattening it in the wrong order, on any of the three paths."""
+    from keyring import next_key
+
+    exponents = jnp.arange(6.0).reshape(2, 3) * 7.0 + 1.0
+    batch = js.PhongLobe(exponents)
+    x = js.UniformHemisphere().sample(next_key(), (4, 2, 3))
+    density = np.asarray(batch.prob(x))
+    key = next_key()
+    means = np.asarray(js.estimate(lambda w: w[2] ** 40, batch, jax.random.clone(key), 256).mean)
+    sample_key = next_key()
+    samples = np.asarray(batch.sample(jax.random.clone(sample_key), (5,)))
+    assert density.shape == (4, 2, 3) and means.shape == (2, 3) and samples.shape == (5, 2, 3, 3)
+    for i in range(2):
+        for j in range(3):
+            member = js.PhongLobe(exponents[i, j])
+            assert np.array_equal(density[:, i, j], np.asarray(member.prob(x[:, i, j])))
+            assert np.array_equal(means[i, j], np.asarray(js.estimate(lambda w: w[2] ** 40, member, jax.random.clone(key),
+                                                                      256).mean))
+            # The batch's samples at [:, i, j] are member (i, j)'s warp of the stream's points there.
+            u = js.uniforms.Random().block(js.uniforms.seed_from_key(jax.random.clone(sample_key)), jnp.uint32(0), 30, 2, jnp.float32)
+            assert np.array_equal(samples[:, i, j], np.asarray(member.warp(u.reshape(5, 2, 3, 2)[:, i, j])))
+
+
 # ---- the names a TFP, distrax or NumPyro user types first ------------------------------------
 
 def test_log_prob_prob_seed_and_sample_shape_are_the_same_functions():

@@ -113,6 +113,98 @@ def test_solid_angles_match_van_oosterom_strackee_and_an_independent_quadrature(
             np.testing.assert_allclose(1.0 / np.asarray(p), reference, rtol=1e-10)
 
 
+# A rectangle 0.005 below the viewer, who sees it nearly as a hemisphere (Ω = 2π - 0.0125): most
+# samples lie near the foot of the perpendicular, far nearer than the corner.
+NEAR_HEMISPHERE_RECTANGLE = ((-1.3, -0.7, -0.005), (2.0, 0.0, 0.0), (0.0, 1.6, 0.0))
+
+# The solid angle and the inside test have one implementation each (samplers/_spherical.py), which
+# the samplers, the regions of jaxsample.edges and the checks' domain all call.
+
+
+def fan64(points):
+    """Van Oosterom & Strackee in float64 on the points as given and their edges from the first: the
+    reference solid angle of a polygon (exact to ~1e-15 for the shapes below)."""
+    p = [np.asarray(v, np.float64) for v in points]
+    total, a = 0.0, p[0]
+    for b, c in zip(p[1:-1], p[2:]):
+        la, lb, lc = (np.linalg.norm(v) for v in (a, b, c))
+        total += 2.0 * np.arctan2(abs(a @ np.cross(b - a, c - a)), la * lb * lc + (a @ b) * lc + (a @ c) * lb + (b @ c) * la)
+    return total
+
+
+# Float32 shapes (the viewer at the origin): 1e-6 and 1e-8 sr triangles (a, b, c), a 1e-8 sr
+# rectangle (corner, edge_u, edge_v), and a triangle and a rectangle seen as nearly a hemisphere
+# (Ω > 6 sr).
+HARD_POLYGONS = {"triangle 1e-6 sr": SMALL_TRIANGLES[1e-6], "triangle 1e-8 sr": SMALL_TRIANGLES[1e-8],
+                 "rectangle 1e-8 sr": registry.SPHERICAL_RECTANGLE_TINY,
+                 "triangle near a hemisphere": ((1.0, 0.0, 0.01), (-0.5, 0.866, 0.01), (-0.5, -0.866, 0.01)),
+                 "rectangle near a hemisphere": NEAR_HEMISPHERE_RECTANGLE}
+
+
+def _polygon32(name):
+    """(the sampler, the polygon's float32 vertices) of a shape of HARD_POLYGONS."""
+    shape = _f32(HARD_POLYGONS[name])
+    if name.startswith("triangle"):
+        return js.SphericalTriangle(*shape), [np.asarray(v) for v in shape]
+    corner, eu, ev = (np.asarray(v, np.float64) for v in shape)
+    points = [corner, corner + eu, corner + eu + ev, corner + ev]
+    return js.SphericalRectangle(*shape), [np.asarray(v, np.float32) for v in points]
+
+
+def _region(points32):
+    if len(points32) == 3:
+        return js.edges.SphericalTriangle(*(jnp.asarray(v) for v in points32))
+    return js.edges.SphericalPolygon(jnp.asarray(np.stack(points32)))
+
+
+@pytest.mark.parametrize("name", list(HARD_POLYGONS))
+def test_a_region_solid_angle_is_exact_to_rounding_at_the_hard_cases(name):
+    """`jaxsample.edges` regions in float32 take Ω from the samplers' Van Oosterom–Strackee (the
+    points as given, the triple product from exact edges): within 1e-6 of the float64 reference.
+    Catches the cancelling form the regions had, a·(b×c) of unit vectors: 1.4e-3, 5.7e-2 and 0.31
+    off at the 1e-6 sr triangle, the 1e-8 sr triangle and the 1e-8 sr rectangle."""
+    _, points32 = _polygon32(name)
+    reference = fan64(points32)
+    assert abs(float(_region(points32).solid_angle()) / reference - 1) < 1e-6, (float(_region(points32).solid_angle()),
+                                                                              reference)
+
+
+def _probes(points, fraction):
+    """Unit directions just inside and just outside each edge of a convex polygon (float64): off the
+    edge's midpoint along its great circle's normal by `fraction` of the edge's angle."""
+    p = [np.asarray(v, np.float64) / np.linalg.norm(v) for v in points]
+    centre = np.sum(p, axis=0)
+    inside, outside = [], []
+    for k in range(len(p)):
+        start, end = p[k], p[(k + 1) % len(p)]
+        normal = np.cross(start, end)
+        normal *= np.sign(normal @ centre) / np.linalg.norm(normal)  # toward the polygon
+        middle = (start + end) / np.linalg.norm(start + end)
+        step = fraction * np.arctan2(np.linalg.norm(np.cross(start, end)), start @ end)
+        for sign, found in ((1.0, inside), (-1.0, outside)):
+            x = middle + sign * step * normal
+            found.append(x / np.linalg.norm(x))
+    return np.array(inside), np.array(outside)
+
+
+@pytest.mark.parametrize("name", list(HARD_POLYGONS))
+def test_the_inside_test_agrees_with_float64_for_the_samplers_the_regions_and_the_checks(name):
+    """Directions 5 % of an edge's angle inside and outside each edge (both orientations of the
+    polygon): the sampler's density is > 0 exactly inside, the region's indicator is 1 exactly
+    inside, and the checks' `contains` agrees, as the float64 geometry says. Catches an inside test
+    that skips an edge (the directions beyond it are counted inside) in any of the three users."""
+    sampler, vertices = _polygon32(name)
+    for points32 in (vertices, vertices[::-1]):
+        inside, outside = _probes(points32, 0.05)
+        region = _region(points32)
+        domain = SphericalPolygon(tuple(tuple(float(t) for t in v) for v in points32))
+        for probes, expected in ((inside, True), (outside, False)):
+            x = jnp.asarray(probes, jnp.float32)
+            assert np.all((np.asarray(sampler.pdf(x)) > 0) == expected), (name, expected)
+            assert np.all((np.asarray(jax.vmap(region.indicator)(x)) == 1) == expected), (name, expected)
+            assert np.all(domain.contains(probes) == expected), (name, expected)
+
+
 # ---------------------------------------------------------------------------------------------
 # Float32 at the smallest solid angles
 # ---------------------------------------------------------------------------------------------
@@ -145,10 +237,6 @@ def _yardstick(make, shape32, u):
         turned = exact + 2.0 ** -24 * turn / np.linalg.norm(turn, axis=-1, keepdims=True)
         return float(np.max(np.abs(np.asarray(_inverse(sampler, jnp.asarray(turned))) - u)))
 
-
-# A rectangle 0.005 below the viewer, who sees it nearly as a hemisphere (Ω = 2π - 0.0125): most
-# samples lie near the foot of the perpendicular, far nearer than the corner.
-NEAR_HEMISPHERE_RECTANGLE = ((-1.3, -0.7, -0.005), (2.0, 0.0, 0.0), (0.0, 1.6, 0.0))
 
 CASES_32 = ([("SphericalTriangle", js.SphericalTriangle, shape) for shape in SMALL_TRIANGLES.values()]
             + [("CosineSphericalTriangle",
