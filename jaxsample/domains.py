@@ -3,9 +3,9 @@
 A sampler's `domain()` returns a plain description of the set its density lives on and the measure
 the density is over (`Directions`, `Interval`, `Box`, `Disk`, `Triangle`, `DiscreteSet`, defined in
 `jaxsample.samplers.domain` and exported here, with the pieces every rule is built from:
-`gauss_legendre_panels`, `graded_edges`, `quantile_edges`, `bin_index` and `Cells`). This module does the numerical work on a domain, in
-float64 NumPy. The checks (`jaxsample.testing`) import it and the samplers do not, so importing a
-sampler never loads it:
+`gauss_legendre_panels`, `graded_edges`, `quantile_edges`, `bin_index` and `Cells`). This module
+does the numerical work on a domain, in float64 NumPy. The checks (`jaxsample.testing`) import it
+and the samplers do not, so importing a sampler never loads it:
 
 - `quadrature(domain)` -> (points, weights): a deterministic rule with sum_i w_i g(x_i) ≈ ∫ g dμ over
   the whole domain, accurate (to ~1e-10) for densities that are smooth between the domain's
@@ -24,7 +24,6 @@ spherical polygons and microfacet directions are such classes).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 
 import numpy as np

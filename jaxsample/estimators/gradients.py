@@ -54,7 +54,7 @@ import jax.numpy as jnp
 
 from .._core.entry import compiled_entry
 from ..samplers.base import check_uniforms, checked
-from .._core.params import check_choice, default_float_dtype, resolve_float_dtype
+from .._core.params import check_choice, resolve_float_dtype
 from .engine import run_stream
 from .integrand import IntegrandLayout, integrand_layout
 from .plain import broadcast_like, integrand_values, over_batch

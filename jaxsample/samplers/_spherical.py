@@ -225,7 +225,8 @@ def check_vectors(owner: str, names: tuple, values) -> list | None:
             raise ValueError(f"{owner}: parameter '{name}' must have shape (3,) (leading dimensions are a batch); "
                              f"got {v.shape}")
         if not np.all(np.isfinite(v)):
-            raise ValueError(f"{owner}: parameter '{name}' must be finite; got {v.tolist() if v.size <= 6 else v.shape}")
+            shown = v.tolist() if v.size <= 6 else v.shape
+            raise ValueError(f"{owner}: parameter '{name}' must be finite; got {shown}")
     try:
         return list(np.broadcast_arrays(*arrays))
     except ValueError:
@@ -283,7 +284,8 @@ class SphericalPolygon:
         start, end = v[k], v[(k + 1) % len(v)]
         s, t = np.broadcast_arrays(np.asarray(s, np.float64), np.asarray(t, np.float64))
         theta = np.arctan2(np.linalg.norm(np.cross(start, end)), start @ end)
-        p_hat = _unit64((np.sin((1.0 - s) * theta)[..., None] * start + np.sin(s * theta)[..., None] * end) / np.sin(theta))
+        p_hat = _unit64((np.sin((1.0 - s) * theta)[..., None] * start + np.sin(s * theta)[..., None] * end)
+                        / np.sin(theta))
         chord = p_hat - g
         half_chord = 0.5 * np.linalg.norm(chord, axis=-1)  # sin(ρ/2), ρ the angle from g to P̂
         tangent = chord - (chord @ g)[..., None] * g
@@ -308,7 +310,8 @@ class SphericalPolygon:
         d_start = np.sum(x * np.cross(start, g), -1)
         d_end = np.sum(x * np.cross(end, g), -1)
         denominator = d_start - d_end
-        chord = np.clip(np.where(denominator != 0, d_start / np.where(denominator != 0, denominator, 1.0), 0.0), 0.0, 1.0)
+        ratio = np.where(denominator != 0, d_start / np.where(denominator != 0, denominator, 1.0), 0.0)
+        chord = np.clip(ratio, 0.0, 1.0)
         p_hat = _unit64(start + chord[..., None] * (end - start))
         theta = np.arctan2(np.linalg.norm(np.cross(start, end), axis=-1), np.sum(start * end, -1))
         s = np.arctan2(np.linalg.norm(np.cross(start, p_hat), axis=-1), np.sum(start * p_hat, -1)) / theta

@@ -12,8 +12,8 @@ import numpy as np
 from .base import Sampler, point_method
 from .._core.numerics import safe_div, safe_sqrt
 from .._core.pytree import parameter
-from ._spherical import (SphericalPolygon, add, check_vectors, components, cross, dot, edge_tolerance, fan_solid_angle, length,
-                         normalize, polygon_inside, safe_atan2, same_sign_difference, scale, stack, sub, where)
+from ._spherical import (SphericalPolygon, add, check_vectors, components, cross, dot, edge_tolerance, fan_solid_angle,
+                         length, normalize, polygon_inside, safe_atan2, same_sign_difference, scale, stack, sub, where)
 
 # |edge_u · edge_v| must be at most this fraction of |edge_u| |edge_v|: perpendicular to float32
 # rounding (edges rotated by a float32 matrix are perpendicular to ~1e-7).
@@ -109,7 +109,8 @@ class SphericalRectangle(Sampler):
         return finite & jnp.all((lu > 0) & (lv > 0) & perpendicular)
 
     def __post_init__(self):
-        values = check_vectors("SphericalRectangle", ("corner", "edge_u", "edge_v"), (self.corner, self.edge_u, self.edge_v))
+        values = check_vectors("SphericalRectangle", ("corner", "edge_u", "edge_v"),
+                               (self.corner, self.edge_u, self.edge_v))
         if values is None:
             return
         _, eu, ev = values

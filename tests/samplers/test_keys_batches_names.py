@@ -150,10 +150,11 @@ def test_a_two_dimensional_batch_maps_the_same_way_for_points_samples_and_estima
         for j in range(3):
             member = js.PhongLobe(exponents[i, j])
             assert np.array_equal(density[:, i, j], np.asarray(member.prob(x[:, i, j])))
-            assert np.array_equal(means[i, j], np.asarray(js.estimate(lambda w: w[2] ** 40, member, jax.random.clone(key),
-                                                                      256).mean))
+            estimate = js.estimate(lambda w: w[2] ** 40, member, jax.random.clone(key), 256)
+            assert np.array_equal(means[i, j], np.asarray(estimate.mean))
             # The batch's samples at [:, i, j] are member (i, j)'s warp of the stream's points there.
-            u = js.uniforms.Random().block(js.uniforms.seed_from_key(jax.random.clone(sample_key)), jnp.uint32(0), 30, 2, jnp.float32)
+            seed = js.uniforms.seed_from_key(jax.random.clone(sample_key))
+            u = js.uniforms.Random().block(seed, jnp.uint32(0), 30, 2, jnp.float32)
             assert np.array_equal(samples[:, i, j], np.asarray(member.warp(u.reshape(5, 2, 3, 2)[:, i, j])))
 
 

@@ -128,7 +128,8 @@ def fan64(points):
     total, a = 0.0, p[0]
     for b, c in zip(p[1:-1], p[2:]):
         la, lb, lc = (np.linalg.norm(v) for v in (a, b, c))
-        total += 2.0 * np.arctan2(abs(a @ np.cross(b - a, c - a)), la * lb * lc + (a @ b) * lc + (a @ c) * lb + (b @ c) * la)
+        total += 2.0 * np.arctan2(abs(a @ np.cross(b - a, c - a)),
+                                  la * lb * lc + (a @ b) * lc + (a @ c) * lb + (b @ c) * la)
     return total
 
 
