@@ -146,9 +146,9 @@ def test_tabulated_metals_reflect_as_measured():
 @functools.cache
 def _gradient_program():
     """shade_grad in the sphere light's centre (3 parameters, reverse mode) for a Phong surface under
-    an RGB sphere and an RGB quad, MIS attached: the silhouettes' boundary term, in colour."""
+    an RGB sphere, MIS attached: the silhouette's boundary term, in colour."""
     def make(centre, albedo, radiance):
-        return lambda q: (POINT, NORMAL, WO, scene.Phong(25.0, albedo), (sphere(radiance, q), quad(radiance)))
+        return lambda q: (POINT, NORMAL, WO, scene.Phong(25.0, albedo), sphere(radiance, q))
 
     def run(centre, albedo, radiance, key):
         return scene.shade_grad(make(centre, albedo, radiance), centre, key, 4096)
@@ -157,8 +157,8 @@ def _gradient_program():
 
 def test_gradients_per_channel_equal_the_scalar_gradients():
     """`shade_grad` of a colour scene has one gradient per channel, shape (3,) + the parameter's, and
-    channel c's is the scalar scene's gradient on the same key (the boundary term of two
-    silhouettes included). With 3 parameters and 3 channels, a channel axis read as the parameter
+    channel c's is the scalar scene's gradient on the same key (the silhouette's boundary term
+    included). With 3 parameters and 3 channels, a channel axis read as the parameter
     axis (a transposed Jacobian) is caught, as is a channel dropped or mixed."""
     key = next_key()
     centre = jnp.asarray(CENTRE)
