@@ -246,6 +246,23 @@ MUTATIONS = [
       "_INLINED = _keyed({",
       ("tests/_core/test_fast_path.py::test_user_programs_stay_on_the_fast_path",),
       "jnp.clip, jnp.where, jnp.linalg.norm, jnp.cross (jit-ed functions) fall back to vmap: right values, 10x slower"),
+    M("lanes-tangent-sum-by-vmap", "jaxsample/_core/lanes.py",
+      "eq_to le_to lt_to stop_gradient add_jaxvals",
+      "eq_to le_to lt_to stop_gradient",
+      ("tests/_core/test_fast_path.py::test_user_programs_stay_on_the_fast_path",),
+      "autodiff's tangent sum (add_any) falls back to vmap: the engine's per-point sensitivities of an "
+      "RGB shade split into many loops, its gradient 6x slower"),
+    M("lanes-columns-stacked", "jaxsample/_core/lanes.py",
+      "if columns and isinstance(o, _Lanes):",
+      "if False:",
+      ("tests/_core/test_fast_path.py::test_columns_come_back_one_lane_array_per_element_with_no_stack_traced",),
+      "a (C,) value per point is interleaved into a (points, C) concatenate of the whole program: RGB 75x slower"),
+    M("moments-of-stacked-columns", "jaxsample/estimators/engine.py",
+      "    if width == 1 and not out_shape:\n",
+      "    if True:\n        return _chunk_moments([jnp.stack(c, -1).reshape(c[0].shape + out_shape) for c in columns],"
+      " replicates, out_shape, bins, diagnostics)\n    if width == 1 and not out_shape:\n",
+      ("tests/_core/test_fast_path.py::test_colour_channels_are_lanes_of_their_own_not_an_interleaved_array",),
+      "the channels stacked before the moments: in a single chunk the per-point program fuses into the concatenate"),
     M("sobol-lanes-without-high-bits", "jaxsample/uniforms/sources.py",
       "jnp.asarray(table[:, j])[:, None] ^ high[j]",
       "jnp.asarray(table[:, j])[:, None]",
@@ -1494,7 +1511,7 @@ MUTATIONS = [
       "a shared float64 operand of an inner program cast to float32 under x64 off: an estimate inside an "
       "integrand fails with a dtype mismatch"),
     M("one-group-values-not-stored", "jaxsample/estimators/engine.py",
-      "                           alone=True)", "                           alone=False)",
+      "token(offset), alone=True))\n    columns = [", "token(offset), alone=False))\n    columns = [",
       ("tests/_core/test_fast_path.py::test_a_one_group_estimate_computes_its_points_in_one_loop_whatever_the_integrand_combines",),
       "a one-group chunk's values reach the replicate sums unstored: XLA's reduction fusion splits the "
       "integrand's last ops off and each operand's loop re-runs the generator and the warp"),

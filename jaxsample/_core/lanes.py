@@ -114,8 +114,11 @@ _ELEMENTWISE_NAMES = """
     reduce_precision add sub mul div rem pow max min nextafter atan2 and or xor shift_left
     shift_right_arithmetic shift_right_logical eq ne ge gt le lt select_n clamp copy
     igamma igammac igamma_grad_a bessel_i0e bessel_i1e polygamma zeta regularized_incomplete_beta
-    eq_to le_to lt_to stop_gradient
+    eq_to le_to lt_to stop_gradient add_jaxvals
 """.split()
+# `add_jaxvals` is autodiff's `add_any`, the sum of two tangents: every JVP that reads a value twice
+# has one (a per-point pushforward of the shading program does). Without a rule here it fell back
+# to vmap, and the stacked values it needs split the program into many loops.
 
 # Calls of a jaxpr, evaluated inline: the primitive and the parameter that holds its jaxpr
 # (a ClosedJaxpr, or an open Jaxpr for `call`).
@@ -606,7 +609,14 @@ def _by_vmap(fn: Callable, lane_shape: tuple[int, ...]) -> Callable:
     return mapped
 
 
-def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> Callable:
+def _as_columns(array, lane_shape: tuple[int, ...]) -> tuple:
+    """A (*lane_shape, *S) array as its per-point elements in C order, one lane array each."""
+    size = int(np.prod(array.shape[len(lane_shape):], dtype=np.int64))
+    flat = array.reshape(lane_shape + (size,))
+    return tuple(flat[..., i] for i in range(size))
+
+
+def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None, columns: bool = False) -> Callable:
     """`fn` maps ONE point (arrays of any shape, a pytree) to a pytree of arrays; the result maps
     per-coordinate lanes to the same outputs over all the points, like `jax.vmap(fn)`.
 
@@ -623,6 +633,12 @@ def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> C
     Where the interpreter does not run (see the module docstring), the result is `jax.vmap(fn)`
     on the points, and `token` is not used.
 
+    `columns=True`: each output leaf comes back as a tuple of its per-point elements in C order, one
+    array of shape `lane_shape` each, never stacked. Stacking the lanes of a (C,) output interleaves
+    them in a (points, C) array, which XLA's CPU backend computes in one concatenate fusion that
+    evaluates the whole per-point program element by element without vectorizing (the RGB `shade`
+    ran 75x slower than the grey one that way); kept apart, each element is a lane of its own.
+
     `token`: a traced integer scalar for the values `stored_once` marks (`computed_once`'s token),
     e.g. the streaming engine's chunk offset. Without one, the token is read from the stored values,
     and the single element read is a second consumer of everything they are computed from, which
@@ -634,7 +650,10 @@ def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> C
 
     def mapped(*args):
         if not _interpreting(strict):  # decided when the program is traced
-            return by_vmap(*args)
+            out = by_vmap(*args)
+            if columns:
+                return jax.tree_util.tree_map(lambda o: _as_columns(o, lane_shape), out)
+            return out
         ev = _Evaluator(lane_shape, strict, token)
         specs, inputs = [], []
         for a in args:
@@ -650,11 +669,15 @@ def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None) -> C
         outs = ev.run(closed.jaxpr, closed.consts, inputs)
         stacked = []
         for o, aval in zip(outs, closed.out_avals):
-            if ev.batched(o):
-                stacked.append(ev.as_stacked(o).array.astype(aval.dtype))
+            if columns and isinstance(o, _Lanes):
+                stacked.append(tuple(ev.lane(c).astype(aval.dtype) for c in o.cells.ravel()))
+            elif ev.batched(o):
+                array = ev.as_stacked(o).array.astype(aval.dtype)
+                stacked.append(_as_columns(array, lane_shape) if columns else array)
             else:  # the same for every point
                 o = jnp.asarray(o)
-                stacked.append(jnp.broadcast_to(o, lane_shape + o.shape))
+                array = jnp.broadcast_to(o, lane_shape + o.shape)
+                stacked.append(_as_columns(array, lane_shape) if columns else array)
         return jax.tree_util.tree_unflatten(out_tree, stacked)
 
     return mapped

@@ -273,8 +273,10 @@ def _hoist_traced(fn, example):
 
 
 def group_values(values_fn, groups, tok, stored: bool, derivative_fn=None):
-    """values_fn on every group of lanes (d arrays of one shape, the points in C order; each
-    result has that shape + values_fn's output shape), with a derivative rule of its own.
+    """values_fn on every group of lanes (d arrays of one shape, the points in C order), with a
+    derivative rule of its own. Each group's result is a tuple of columns: the elements of
+    values_fn's output shape in C order, one array of the lanes' shape each (`lane_map`'s
+    `columns`: never stacked into a (points, *out) array inside the program's loop).
 
     `values_fn` is elementwise over the points, so values_fn(u[None])[0] is its per-point form;
     `lanes.lane_map` evaluates that on one array per coordinate, which XLA fuses into one loop
@@ -309,7 +311,8 @@ def group_values(values_fn, groups, tok, stored: bool, derivative_fn=None):
         point, consts = _hoist_traced(lambda one: fn(one[None])[0], example)
 
         def by_lanes(flat, consts, tok):
-            return [lane_map(lambda one: point(one, *consts), shape, token=tok)(lanes) for lanes in regroup(flat)]
+            return [lane_map(lambda one: point(one, *consts), shape, token=tok, columns=True)(lanes)
+                    for lanes in regroup(flat)]
 
         return by_lanes, consts, point
 
@@ -324,8 +327,10 @@ def group_values(values_fn, groups, tok, stored: bool, derivative_fn=None):
             refusal, d_consts = error, []
     if not any(jnp.issubdtype(c.dtype, jnp.inexact) for c in list(consts) + list(d_consts)):
         return by_lanes(flat, consts, tok)  # nothing values_fn reads can carry a derivative
-    lanes_jaxpr = jax.make_jaxpr(by_lanes)(flat, list(consts), tok)
-    replay = lambda flat, consts, tok: jaxpr_as_fun(lanes_jaxpr)(*flat, *consts, tok)
+    lanes_jaxpr, out_tree = jax.make_jaxpr(by_lanes, return_shape=True)(flat, list(consts), tok)
+    out_tree = jax.tree_util.tree_structure(out_tree)
+    replay = lambda flat, consts, tok: jax.tree_util.tree_unflatten(
+        out_tree, jaxpr_as_fun(lanes_jaxpr)(*flat, *consts, tok))
 
     @jax.custom_jvp
     def values(flat, tok, consts, d_consts):
@@ -387,7 +392,7 @@ def _forward_tangents(point, example, consts, live, once, tangents, regroup, sha
     `computed_once`), and the transposed rule is a sum of products with them. Worth it while
     the moving coordinates are few (one per scalar parameter differentiated: an exponent, the
     three of a light's centre); with more, `group_values` keeps the plain rule."""
-    out_shape = jax.eval_shape(lambda: point(example, *consts)).shape
+    out_size = math.prod(jax.eval_shape(lambda: point(example, *consts)).shape)
 
     def sensitivities(one, *values):
         s = _pushforward(point, one, values, live)
@@ -396,10 +401,12 @@ def _forward_tangents(point, example, consts, live, once, tangents, regroup, sha
     per_group = [lane_map(lambda one: sensitivities(one, *consts), shape, token=tok)(lanes) for lanes in regroup(once)]
     stored = iter(computed_once([a for group in per_group for a in group], tok, alone=True))
     t = _ravel(tangents)[0]
+    k = t.size
     out = []
     for group in per_group:
-        columns = jnp.stack([next(stored) for _ in group], axis=-1).reshape(shape + out_shape + (t.size,))
-        out.append(jnp.sum(columns * t.astype(columns.dtype), axis=-1))
+        # S is (*out, k) per point, its elements in C order: output column j is Σ_i S[j, i] t_i.
+        s = [next(stored) for _ in group]
+        out.append(tuple(sum(s[j * k + i] * t[i].astype(s[0].dtype) for i in range(k)) for j in range(out_size)))
     return out
 
 
@@ -453,9 +460,31 @@ def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, siz
     # elementwise ops (the sum of x, y, z) into the replicate sums and leaves each operand its own
     # loop, each re-running the generator and the warp (Sobol' with UniformSphere: 3 such loops).
     derivative_fn = getattr(values_fn, "derivative", None)
-    values = computed_once(group_values(values_fn, groups, token(offset), stored, derivative_fn), token(offset),
-                           alone=True)
-    return _chunk_moments(values, source.replicates, out_shape, bins, diagnostics)
+    columns = group_values(values_fn, groups, token(offset), stored, derivative_fn)
+    kept = iter(computed_once([c for group in columns for c in group], token(offset), alone=True))
+    columns = [tuple(next(kept) for _ in group) for group in columns]
+    return _column_moments(columns, source.replicates, out_shape, bins, diagnostics)
+
+
+def _column_moments(columns, replicates: int, out_shape, bins: int, diagnostics) -> _Moments:
+    """`_chunk_moments` of values given per group as columns (the elements of out_shape in C order,
+    each an array over the group's points), taken column by column and stacked once reduced. The
+    values are never stacked into a (points, *out) array: XLA's CPU backend would compute that
+    array in one concatenate fusion, element by element, and where the `computed_once` boundary
+    folds (a single chunk: its offset is a constant) take the whole per-point program into it."""
+    out_shape = tuple(out_shape)
+    width = len(columns[0])
+    if width == 1 and not out_shape:
+        return _chunk_moments([c[0] for c in columns], replicates, (), bins, diagnostics)
+    per_column = [_chunk_moments([group[j] for group in columns], replicates, (), bins, diagnostics)
+                  for j in range(width)]
+
+    def stacked(name):
+        array = jnp.stack([getattr(m, name) for m in per_column], axis=-1)
+        return array.reshape(array.shape[:-1] + out_shape)
+
+    names = ("sums", "compensation", "m2", "max_abs", "sum_abs", "tail", "nonzero")
+    return _Moments(**{name: stacked(name) for name in names}, count=per_column[0].count)
 
 
 def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int, total: int,

@@ -19,24 +19,32 @@ import functools
 import jax
 import jax.numpy as jnp
 
-__all__ = ["lift", "product", "channel_shape", "scene_channels"]
+__all__ = ["lift", "product", "with_channel_axis", "channel_shape", "scene_channels"]
+
+
+def with_channel_axis(values, batch_ndim: int, coloured: bool):
+    """`values` (per sample: `batch_ndim` axes, or already `batch + (C,)`) with a trailing axis of
+    length 1 where `coloured` and it has none, so that it broadcasts against `batch + (C,)` colour.
+    Python numbers, and everything where nothing is coloured, are returned as they are. The one
+    rule that `lift`, `product` and the shading integrand's per-sample factors share."""
+    if coloured and not isinstance(values, (int, float)) and jnp.ndim(values) == batch_ndim:
+        return jnp.expand_dims(values, -1)
+    return values
 
 
 def lift(values, colour):
-    """`values` (per sample, shape `batch`) with a trailing axis of length 1 when `colour` has a
-    channel axis, so that `values` and a `batch + (C,)` colour broadcast; unchanged otherwise."""
-    return jnp.expand_dims(values, -1) if jnp.ndim(colour) == 1 else values
+    """`values` (per sample, shape `batch`) with a trailing axis of length 1 when `colour` (an
+    object's parameter, scalar or (C,)) has a channel axis; unchanged otherwise."""
+    return with_channel_axis(values, jnp.ndim(values), jnp.ndim(colour) == 1)
 
 
 def product(batch_ndim: int, *factors):
     """The product of per-sample factors of shape `batch` (`batch_ndim` axes) or `batch + (C,)`:
-    where any factor has the channel axis, the others are given one (`lift`). Python numbers pass
-    through as they are."""
+    where any factor has the channel axis, the others are given one. Python numbers pass through."""
     coloured = any(jnp.ndim(f) > batch_ndim for f in factors)
     result = None
     for f in factors:
-        if coloured and not isinstance(f, (int, float)) and jnp.ndim(f) == batch_ndim:
-            f = jnp.expand_dims(f, -1)
+        f = with_channel_axis(f, batch_ndim, coloured)
         result = f if result is None else result * f
     return result
 

@@ -74,7 +74,7 @@ from ..samplers.frame import Frame
 from .._core.numerics import safe_div
 from ..estimators.boundary import relative_motion, sample_flow
 from .checks import as_lights, check_scene
-from .colour import product, scene_channels
+from .colour import product, scene_channels, with_channel_axis
 
 __all__ = ["shade", "shade_grad", "STRATEGIES"]
 
@@ -105,9 +105,7 @@ class _Shading:
     def colour(self, values, batch_ndim):
         """A per-sample array (`batch_ndim` axes) given the scene's channel axis, so that it broadcasts
         against per-channel values; per-channel values and Python numbers are returned as they are."""
-        if self.channels and not isinstance(values, (int, float)) and jnp.ndim(values) == batch_ndim:
-            return jnp.expand_dims(values, -1)
-        return values
+        return with_channel_axis(values, batch_ndim, bool(self.channels))
 
     def radiance_from(self, light, wi):
         """`light`'s radiance along world directions wi, with the scene's channel axis."""
