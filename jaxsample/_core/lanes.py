@@ -241,10 +241,13 @@ class _Evaluator:
             return self.fallback(eqn, inputs, "no lane rule for this primitive")
         if any(_size(v) > MAX_LANES for v in list(eqn.outvars) + list(eqn.invars)):
             return self.fallback(eqn, inputs, f"a value of more than MAX_LANES = {MAX_LANES} elements")
-        if rule is _elementwise and any(isinstance(x, _Stacked) for x in inputs):
-            # A value the fallback already stacked stays stacked through elementwise work: XLA is
-            # fast on elementwise (points, *S) arrays; only mixing the small axes (dots,
-            # reductions, rearrangements) needs lanes. A layout choice, not a missing rule.
+        if rule is _elementwise and all(isinstance(x, _Stacked) for x in inputs if self.batched(x)):
+            # Values the fallback already stacked stay stacked through elementwise work among
+            # themselves: XLA is fast on elementwise (points, *S) arrays. Mixed with lanes, the
+            # stacked operand is split into lanes instead (slices of an array already computed):
+            # stacking the lanes would put everything they are computed from into one concatenate
+            # fusion, evaluated element by element (an RGB environment map's texels times the
+            # per-point weights: 6x the grey program). A layout choice, not a missing rule.
             return self.fallback(eqn, inputs, None)
         lanes = [self.as_lanes(x) if self.batched(x) else x for x in inputs]
         if any(x is None for x in lanes):
@@ -253,6 +256,19 @@ class _Evaluator:
         if result is NotImplemented:
             return self.fallback(eqn, inputs, "its rule declines these parameters or dtypes")
         return result
+
+    def stored_for_stacking(self, inputs):
+        """The lanes among a fallback's operands, stored once (`computed_once`) where there are
+        several: stacked straight from the lanes (or combined by vmap's batching rule, as the
+        indices of a vmapped `dynamic_slice`), they are one concatenate fusion that computes
+        everything upstream element by element (a texel index (i, j) for an environment map's
+        gather: 30 of a 70 ms program). Stored, the stack reads computed arrays."""
+        lanes = [x for x in inputs if isinstance(x, _Lanes)]
+        if sum(x.cells.size for x in lanes) < 2 or self.token is None:
+            return inputs
+        stored = iter(computed_once([self.lane(c) for x in lanes for c in x.cells.ravel()], self.token))
+        return [_Lanes(_object_array([next(stored) for _ in range(x.cells.size)], x.cells.shape), x.dtype)
+                if isinstance(x, _Lanes) else x for x in inputs]
 
     def fallback(self, eqn, inputs, reason):
         """vmap of this one primitive over the stacked (points, *S) operands. `reason`: why the
@@ -264,6 +280,7 @@ class _Evaluator:
         lanes = self.lane_shape
         points = int(np.prod(lanes, dtype=np.int64))
         axes = [0 if self.batched(x) else None for x in inputs]
+        inputs = self.stored_for_stacking(inputs)
         operands = [self.as_stacked(x).array for x in inputs if self.batched(x)]
         operands = iter([a.reshape((points,) + a.shape[len(lanes):]) for a in operands])
         operands = [next(operands) if self.batched(x) else x for x in inputs]
