@@ -1313,7 +1313,7 @@ MUTATIONS = [
       ("tests/_core/test_fast_path.py::test_a_many_output_estimate_runs_the_generator_in_a_few_loops_not_one_per_output",),
       "with many outputs per point the warped sample must be stored once, or each output's loop re-runs the warp"),
     M("many-outputs-uniforms-not-stored", "jaxsample/estimators/engine.py",
-      "        groups = _uniforms_stored_once(groups, token(offset))", "        pass",
+      "        groups = _uniforms_stored_once(groups, tok)", "        pass",
       ("tests/_core/test_fast_path.py::test_a_many_output_estimate_runs_the_generator_in_a_few_loops_not_one_per_output",),
       "with many outputs per point the chunk's uniforms must be stored once, or each output's loop re-runs Philox"),
     M("lanes-stored-once-rule-dropped", "jaxsample/_core/lanes.py",
@@ -1533,7 +1533,7 @@ MUTATIONS = [
       "a shared float64 operand of an inner program cast to float32 under x64 off: an estimate inside an "
       "integrand fails with a dtype mismatch"),
     M("one-group-values-not-stored", "jaxsample/estimators/engine.py",
-      "token(offset), alone=True))\n    columns = [", "token(offset), alone=False))\n    columns = [",
+      "tok, alone=True))\n    columns = [", "tok, alone=False))\n    columns = [",
       ("tests/_core/test_fast_path.py::test_a_one_group_estimate_computes_its_points_in_one_loop_whatever_the_integrand_combines",),
       "a one-group chunk's values reach the replicate sums unstored: XLA's reduction fusion splits the "
       "integrand's last ops off and each operand's loop re-runs the generator and the warp"),

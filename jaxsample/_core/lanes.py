@@ -117,8 +117,7 @@ _ELEMENTWISE_NAMES = """
     eq_to le_to lt_to stop_gradient add_jaxvals
 """.split()
 # `add_jaxvals` is autodiff's `add_any`, the sum of two tangents: every JVP that reads a value twice
-# has one (a per-point pushforward of the shading program does). Without a rule here it fell back
-# to vmap, and the stacked values it needs split the program into many loops.
+# has one (the engine's per-point sensitivities do), so it must stay on the lanes.
 
 # Calls of a jaxpr, evaluated inline: the primitive and the parameter that holds its jaxpr
 # (a ClosedJaxpr, or an open Jaxpr for `call`).
@@ -246,8 +245,7 @@ class _Evaluator:
             # themselves: XLA is fast on elementwise (points, *S) arrays. Mixed with lanes, the
             # stacked operand is split into lanes instead (slices of an array already computed):
             # stacking the lanes would put everything they are computed from into one concatenate
-            # fusion, evaluated element by element (an RGB environment map's texels times the
-            # per-point weights: 6x the grey program). A layout choice, not a missing rule.
+            # fusion, evaluated element by element. A layout choice, not a missing rule.
             return self.fallback(eqn, inputs, None)
         lanes = [self.as_lanes(x) if self.batched(x) else x for x in inputs]
         if any(x is None for x in lanes):
@@ -261,8 +259,8 @@ class _Evaluator:
         """The lanes among a fallback's operands, stored once (`computed_once`) where there are
         several: stacked straight from the lanes (or combined by vmap's batching rule, as the
         indices of a vmapped `dynamic_slice`), they are one concatenate fusion that computes
-        everything upstream element by element (a texel index (i, j) for an environment map's
-        gather: 30 of a 70 ms program). Stored, the stack reads computed arrays."""
+        everything upstream element by element (an environment map's texel index (i, j)).
+        Stored, the stack reads computed arrays."""
         lanes = [x for x in inputs if isinstance(x, _Lanes)]
         if sum(x.cells.size for x in lanes) < 2 or self.token is None:
             return inputs
@@ -653,8 +651,8 @@ def lane_map(fn: Callable, lane_shape, *, strict: bool = False, token=None, colu
     `columns=True`: each output leaf comes back as a tuple of its per-point elements in C order, one
     array of shape `lane_shape` each, never stacked. Stacking the lanes of a (C,) output interleaves
     them in a (points, C) array, which XLA's CPU backend computes in one concatenate fusion that
-    evaluates the whole per-point program element by element without vectorizing (the RGB `shade`
-    ran 75x slower than the grey one that way); kept apart, each element is a lane of its own.
+    evaluates the whole per-point program element by element without vectorizing
+    (`docs/xla-cpu-paths.md`); kept apart, each element is a lane of its own.
 
     `token`: a traced integer scalar for the values `stored_once` marks (`computed_once`'s token),
     e.g. the streaming engine's chunk offset. Without one, the token is read from the stored values,

@@ -217,7 +217,7 @@ def _finite_or_jvp(primals, tangents):
     # mean has no derivative to give, and its tangent is then not finite either). Not reading
     # `finite` keeps the gradient of a mean from needing the value's stream at all: the forward
     # derivative stream (`_differentiable_stream`) is then the whole gradient program, and XLA
-    # drops the value's loop (`jax.grad` of an estimate's mean ran both loops, 1.3-1.5x the cost).
+    # drops the value's loop.
     return _finite_or(*primals), tangents[1]
 
 
@@ -461,9 +461,8 @@ def _uniforms_stored_once(groups, tok):
 def _chunk_token(seed, offset) -> jax.Array:
     """The chunk's `computed_once` token: its offset mixed with a word of the seed. The offset alone
     is a constant where the stream is one chunk (no loop), and XLA then folds every `computed_once`
-    boundary of the chunk away: the one-chunk RGB environment-map program had its per-point program
-    in a 550-instruction concatenate fusion. The seed comes from the key, traced in any program that
-    takes its key as an argument."""
+    boundary of the chunk away (`docs/xla-cpu-paths.md`). The seed comes from the key, traced in any
+    program that takes its key as an argument."""
     words = jnp.ravel(jnp.asarray(seed))
     if words.size == 0 or not jnp.issubdtype(words.dtype, jnp.integer):
         return token(offset)
