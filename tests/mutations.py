@@ -276,7 +276,7 @@ MUTATIONS = [
        "tests/_core/test_fast_path.py::test_an_rgb_environment_map_program_stacks_only_stored_values"),
       "a 2-D texel index stacked straight from its lanes: the program upstream in a concatenate fusion (3x slower)"),
     M("chunk-token-from-the-offset-alone", "jaxsample/estimators/engine.py",
-      "    return token(offset) ^ words[0].astype(jnp.uint32)",
+      "    return token(offset) ^ seed[0]",
       "    return token(offset)",
       ("tests/_core/test_fast_path.py::test_an_rgb_environment_map_program_stacks_only_stored_values",),
       "a one-chunk stream's computed_once token is a constant: XLA folds every boundary of the chunk"),

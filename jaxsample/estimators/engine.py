@@ -462,11 +462,8 @@ def _chunk_token(seed, offset) -> jax.Array:
     """The chunk's `computed_once` token: its offset mixed with a word of the seed. The offset alone
     is a constant where the stream is one chunk (no loop), and XLA then folds every `computed_once`
     boundary of the chunk away (`docs/xla-cpu-paths.md`). The seed comes from the key, traced in any
-    program that takes its key as an argument."""
-    words = jnp.ravel(jnp.asarray(seed))
-    if words.size == 0 or not jnp.issubdtype(words.dtype, jnp.integer):
-        return token(offset)
-    return token(offset) ^ words[0].astype(jnp.uint32)
+    program that takes its key as an argument (`seed_from_key`: SEED_WORDS uint32 words)."""
+    return token(offset) ^ seed[0]
 
 
 def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, size: int, out_shape, bins: int, *,
