@@ -52,7 +52,7 @@ def computed_once(values, token, *, alone: bool = False):
     Returns the same values, bit for bit; `token` is any traced integer scalar (the estimator's
     chunk offset, a seed word). Values of other widths (bool, int8) pass through unpacked.
     `alone`: a single value also crosses the `lax.cond` boundary (computed in one loop and stored),
-    so that no consumer can pull part of its computation into its own fusion (see `engine._chunk`).
+    so that no consumer can pull part of its computation into its own fusion (see `engine.chunk_step`).
     """
     values = list(values)
     if not cpu_paths.active():

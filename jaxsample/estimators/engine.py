@@ -4,10 +4,11 @@
 key, n)` (`plain.py`) draws x_i = sampler.warp(u_i) from a uniform source
 (`jaxsample.uniforms`), averages Y_i = f(x_i)/p(x_i) (0 where p = 0, in value and gradient) and
 returns an `Estimate` with the mean, its standard error and diagnostics. Every estimator is built
-from the same pieces: `_chunk` (the moments of one chunk of the stream), `_merge`, `combine_devices`
-(the moments of a device mesh) and `finish` (mean, stderr with its floor, variance, ess, k-hat and
-the nonzero fraction from the moments), which `run_stream` calls once and `estimate_until`
-(`until.py`) after every chunk of its while loop.
+from the same pure pieces, an (init, update, finish) triple over the moments: `empty_moments` (init),
+`chunk_step` (the moments of one chunk of the stream) folded in by `merge_moments` (update),
+`combine_devices` (the moments of a device mesh) and `finish` (mean, stderr with its floor, variance,
+ess, k-hat and the nonzero fraction from the moments), which `run_stream` calls once and
+`estimate_until` (`until.py`) after every chunk of its while loop.
 
 Streaming: the n samples are processed in chunks of `chunk_size` inside `lax.scan`, so memory does
 not grow with n. Sample indices have 64 bits (`jaxsample.uniforms.index`): a stream of more than
@@ -159,7 +160,7 @@ def _chunk_moments(groups: tuple[jax.Array, ...], replicates: int, out_shape, bi
     )
 
 
-def _merge(a: _Moments, b: _Moments) -> _Moments:
+def merge_moments(a: _Moments, b: _Moments) -> _Moments:
     """Chan et al. (1979) pairwise merge of M2; compensated sums; a.count may be 0."""
     count = a.count + b.count
     mean_a = jnp.sum(a.sums + a.compensation, axis=0) / jnp.maximum(a.count, 1.0)
@@ -172,7 +173,7 @@ def _merge(a: _Moments, b: _Moments) -> _Moments:
                     a.sum_abs + b.sum_abs, merge_tails(a.tail, b.tail), a.nonzero + b.nonzero, count)
 
 
-def _empty_moments(replicates: int, out_shape, dtype, bins: int) -> _Moments:
+def empty_moments(replicates: int, out_shape, dtype, bins: int) -> _Moments:
     zeros = jnp.zeros((replicates,) + out_shape, dtype)
     scalar = jnp.zeros(out_shape, dtype)
     return _Moments(zeros, zeros, scalar, scalar, scalar, empty_tail(out_shape, dtype, bins), scalar,
@@ -466,7 +467,7 @@ def _chunk_token(seed, offset) -> jax.Array:
     return token(offset) ^ seed[0]
 
 
-def _chunk(values_fn, source: Source, seed, dims: int, dtype, offset: Index, size: int, out_shape, bins: int, *,
+def chunk_step(values_fn, source: Source, seed, dims: int, dtype, offset: Index, size: int, out_shape, bins: int, *,
            total, aligned: int, diagnostics: bool = True) -> _Moments:
     """Moments of values_fn over the `size` points from global index `offset`: one step of every
     streaming loop (`_stream`'s scan, `estimate_until`'s while loop).
@@ -532,17 +533,17 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
 
     def chunk(offset: Index, size, carried):
         fn = values_fn if carried is None else values_fn(carried)
-        return _chunk(fn, source, seed, dims, dtype, offset, size, out_shape, bins, total=total,
+        return chunk_step(fn, source, seed, dims, dtype, offset, size, out_shape, bins, total=total,
                       aligned=aligned, diagnostics=diagnostics)
 
     bins = tail_bins(total, chunk_size)
-    moments = _empty_moments(replicates, out_shape, dtype, bins)
+    moments = empty_moments(replicates, out_shape, dtype, bins)
     steps, tail = divmod(count, chunk_size)
     if steps and carried is not None:
         def step_of(state):
             step, moments, carried = state
             offset = offset_at(base, step, chunk_size, wide)
-            return step + 1, _merge(moments, chunk(offset, chunk_size, carried)), carried
+            return step + 1, merge_moments(moments, chunk(offset, chunk_size, carried)), carried
 
         _, moments, _ = jax.lax.while_loop(lambda state: state[0] < steps, step_of,
                                            (jnp.uint32(0), moments, carried))
@@ -552,11 +553,11 @@ def _stream(values_fn, source: Source, seed, dims: int, dtype, base, count: int,
         def body(state, step):
             moments, carried = state
             offset = offset_at(base, step, chunk_size, wide)
-            return (_merge(moments, chunk_body(offset, carried)), carried), None
+            return (merge_moments(moments, chunk_body(offset, carried)), carried), None
 
         (moments, _), _ = jax.lax.scan(body, (moments, carried), jnp.arange(steps, dtype=jnp.uint32))
     if tail:
-        moments = _merge(moments, chunk(offset_at(base, steps, chunk_size, wide), tail, carried))
+        moments = merge_moments(moments, chunk(offset_at(base, steps, chunk_size, wide), tail, carried))
     return moments
 
 
@@ -729,7 +730,7 @@ def _check_n(owner: str, n, replicates: int, devices: int, source: Source) -> in
     return n
 
 
-def _check_chunk_size(owner: str, chunk_size, replicates: int) -> int:
+def check_chunk_size(owner: str, chunk_size, replicates: int) -> int:
     if chunk_size is None:
         chunk_size = DEFAULT_CHUNK_SIZE
     step = math.lcm(4, replicates)
@@ -740,11 +741,11 @@ def _check_chunk_size(owner: str, chunk_size, replicates: int) -> int:
     return int(chunk_size)
 
 
-_MAX_STEPS = (1 << 31) - 1  # lax.scan counts its steps in int32
+MAX_STEPS = (1 << 31) - 1  # lax.scan counts its steps in int32
 
 
 def _check_steps(owner: str, per_device: int, chunk_size: int) -> None:
-    if per_device // chunk_size > _MAX_STEPS:
+    if per_device // chunk_size > MAX_STEPS:
         raise ValueError(f"{owner}: n / chunk_size ({per_device // chunk_size} chunks per device) must be "
                          f"below 2^31 (the streaming loop counts chunks in int32); raise 'chunk_size' "
                          f"(now {chunk_size})")
@@ -764,7 +765,7 @@ def run_stream(values_fn, dims: int, key, n: int, *, uniforms="random", mesh=Non
     dtype = resolve_float_dtype(owner, dtype)
     devices = 1 if mesh is None else mesh.size
     n = _check_n(owner, n, replicates, devices, source)
-    chunk_size = _check_chunk_size(owner, chunk_size, replicates)
+    chunk_size = check_chunk_size(owner, chunk_size, replicates)
     _check_steps(owner, n // devices, chunk_size)
     seed = seed_from_key(key)
 

@@ -52,7 +52,7 @@ from .._core.pytree import static_field
 from ..uniforms import Halton, Lattice, Random, Sobol, as_source, seed_from_key
 from ..uniforms.index import MAX_INDEX, NARROW_LIMIT, offset_at
 from .diagnostics import tail_bins, verdict
-from .engine import (_MAX_STEPS, _check_chunk_size, _chunk, _empty_moments, _merge, combine_devices, finish,
+from .engine import (MAX_STEPS, check_chunk_size, chunk_step, empty_moments, merge_moments, combine_devices, finish,
                      shard_over)
 from .integrand import integrand_layout
 from .plain import check_mode, over_batch, packed_values
@@ -194,20 +194,20 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
     devices = 1 if mesh is None else mesh.size
     max_n = check_count(owner, "max_n", max_n, minimum=2, maximum=MAX_INDEX)
     count_dtype = jnp.int32
-    if max_n > _MAX_STEPS:
+    if max_n > MAX_STEPS:
         if not jax.config.jax_enable_x64:
             raise ValueError(f"estimate_until: parameter 'max_n' must be below 2^31 ({max_n} given): n_used is an "
                              f"int32 array without jax_enable_x64. Enable x64 (n_used is then int64), or use "
                              f"jaxsample.estimate(..., n) with a fixed n, which takes n up to 2^64")
         count_dtype = jnp.int64
-    chunk = _check_chunk_size(owner, max(1, min(1 << 16, max_n // devices)) if chunk_size is None else chunk_size,
+    chunk = check_chunk_size(owner, max(1, min(1 << 16, max_n // devices)) if chunk_size is None else chunk_size,
                               replicates)
     step = chunk * devices    # the samples of one step of the loop
     if max_n % step:
         across = "" if devices == 1 else f" x {devices} devices"
         raise ValueError(f"estimate_until: 'chunk_size' ({chunk}){across} must be a positive multiple of "
                          f"{math.lcm(4, replicates)} that divides 'max_n' ({max_n})")
-    if max_n // step > _MAX_STEPS:
+    if max_n // step > MAX_STEPS:
         raise ValueError(f"estimate_until: max_n / chunk_size ({max_n // step}) must be below 2^31 (the loop "
                          f"counts chunks in int32); raise 'chunk_size' (now {chunk})")
     min_n = 8 * step if min_n is None else check_count(owner, "min_n", min_n, minimum=1)
@@ -255,7 +255,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
             index = steps.astype(jnp.uint32)
             if mesh is not None:
                 index = index * jnp.uint32(devices) + device
-            m = _chunk(values_fn, source, seed, dims, dtype, offset_at(0, index, chunk, wide), chunk, out_shape,
+            m = chunk_step(values_fn, source, seed, dims, dtype, offset_at(0, index, chunk, wide), chunk, out_shape,
                        bins, total=None, aligned=chunk)
             return m if mesh is None else combine_devices(m, axes, chunk, step, dtype)
 
@@ -265,7 +265,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
 
         def body(state):
             moments, steps, _ = state
-            moments = _merge(moments, step_moments(steps))
+            moments = merge_moments(moments, step_moments(steps))
             steps = steps + 1
             statistics = finish(moments, used(steps), replicates, most=max_n)
             # Sizes compared with the tolerance: |component|, the modulus for both parts of a complex leaf.
@@ -274,7 +274,7 @@ def estimate_until(f: Callable[[jax.Array], jax.Array], sampler, key: jax.Array,
             met = jnp.all(stderr <= tolerance) & (steps >= min_steps) & at_net(steps)
             return moments, steps, met
 
-        init = (_empty_moments(replicates, out_shape, dtype, bins * devices), jnp.int32(0), jnp.bool_(False))
+        init = (empty_moments(replicates, out_shape, dtype, bins * devices), jnp.int32(0), jnp.bool_(False))
         return jax.lax.while_loop(cond, body, init)
 
     moments, steps, converged = loop(seed) if mesh is None else shard_over(mesh, loop, seed)

@@ -19,7 +19,7 @@ import pytest
 import jaxsample as js
 from jaxsample.samplers.base import Sampler
 from jaxsample.estimators.diagnostics import empty_tail
-from jaxsample.estimators.engine import _empty_moments, _merge, _Moments
+from jaxsample.estimators.engine import empty_moments, merge_moments, _Moments
 from jaxsample.estimators.plain import estimate
 from jaxsample.estimators.result import Estimate
 
@@ -120,10 +120,10 @@ def test_accumulator_exact_for_constant_over_2_to_30_samples():
         naive, moments = state
         new = _Moments(chunk_sum[None], jnp.zeros(1), jnp.float32(0), jnp.float32(value),
                        chunk_sum, empty_tail((), jnp.float32, 2), jnp.float32(chunk), jnp.float32(chunk))
-        return (naive + chunk_sum, _merge(moments, new)), None
+        return (naive + chunk_sum, merge_moments(moments, new)), None
 
     (naive, moments), _ = jax.jit(lambda: jax.lax.scan(
-        body, (jnp.float32(0), _empty_moments(1, (), jnp.float32, 2)), None, length=1 << 14))()
+        body, (jnp.float32(0), empty_moments(1, (), jnp.float32, 2)), None, length=1 << 14))()
     ours = (moments.sums[0] + moments.compensation[0]) / np.float32(2.0 ** 30)
     assert abs(float(ours) / value - 1) < 1e-6
     assert float(moments.m2) <= 1e-12 * 2.0 ** 30 * value ** 2  # M2 stays at rounding level
