@@ -52,6 +52,25 @@ TINY_SKIPPED = ("baselines", "the curse of dimensionality", "point sets against 
 NO_VERDICTS = "no verdicts at smoke-test size"
 
 
+class _SectionClock:
+    """Wall time per section of the run: `clock(name)` starts a section (ending the one before, whose
+    time it prints); `clock.finish()` ends the last and returns [(name, seconds)]."""
+
+    def __init__(self, progress):
+        self.progress, self.rows, self.current, self.since = progress, [], None, time.perf_counter()
+
+    def __call__(self, name: str | None) -> None:
+        now = time.perf_counter()
+        if self.current is not None:
+            self.rows.append((self.current, now - self.since))
+            self.progress(f"  ({self.current}: {now - self.since:.0f} s)")
+        self.current, self.since = name, now
+
+    def finish(self) -> list[tuple[str, float]]:
+        self(None)
+        return self.rows
+
+
 def _piece(name: str):
     """A module of this package (the report's building blocks), imported when its section runs."""
     return importlib.import_module(f"{__name__}.{name}")
@@ -307,7 +326,12 @@ def study_section(rows: list[dict], tiny: bool = False) -> list[str]:
                  f"allow; with fewer than {_piece('verdicts').MIN_SLOPE_POINTS} such points there is no slope "
                  "(\"too few sizes\"). ")
     text += ("MIS rows count one sample per technique as two evaluations. ns/sample measured on `js.estimate` "
-             "under jit (see jaxsample/report/convergence.py).\n")
+             "under jit (see jaxsample/report/convergence.py).")
+    if not any(r.get("uniforms") in convergence.EXTRA_SETS for r in rows):
+        text += (f" Here the Sobol' strategies are not repeated on the other point sets "
+                 f"({', '.join(convergence.EXTRA_SETS)}; the full study does that): the section on point sets "
+                 "against dimension compares them all.")
+    text += "\n"
     return ["## Speed against error, per integrand and strategy\n", text,
             convergence.markdown_table(rows, verdicts=not tiny)]
 
@@ -341,6 +365,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     out.mkdir(parents=True, exist_ok=True)
     progress = lambda message: print(message, flush=True)  # noqa: E731
     started = time.perf_counter()
+    section = _SectionClock(progress)
     if tiny:
         progress(smoke_test_headline())
     env = _environment()
@@ -348,6 +373,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     md += [f"| {k} | {v} |" for k, v in env.items()]
     md.append("")
 
+    section("samplers")
     samplers = _piece("samplers_table")
     sampler_rows = samplers.sampler_table(n=1 << (12 if tiny else (18 if quick else 20)), progress=progress,
                                           timing_n=1 << (14 if tiny else 20),
@@ -357,6 +383,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
            "`js.estimate` (default uniforms) beside its exact value; `sample_with_pdf` time under jit.\n",
            samplers.markdown_table(sampler_rows)]
 
+    section("speed against error")
     convergence = _piece("convergence")
     rows = convergence.run_study(quick=quick, tiny=tiny, progress=progress)
     _write_csv(out / "convergence.csv", rows)
@@ -367,6 +394,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         _write_csv(out / "verdicts.csv", [_verdict_record(v) for v in verdict_rows])
     md += verdict_section(rows, tiny) + study_section(rows, tiny)
 
+    section("baselines")
     baselines = _piece("baselines")
     if tiny:
         md += ["## Baselines\n", "Skipped in --tiny mode (run `python -m jaxsample.report.baselines`).\n"]
@@ -375,6 +403,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         _write_csv(out / "baselines.csv", [base])
         md += ["## Baselines (∫cos³ over H², cosine sampling, one run)\n", baselines.markdown_table(base)]
 
+    section("speed of every public path")
     paths = _piece("paths")
     path_rows = paths.path_table(quick=quick, tiny=tiny, progress=progress)
     _write_csv(out / "paths.csv", path_rows)
@@ -384,6 +413,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
            f"(`jaxsample/report/paths.py`{'; --tiny times only the integrand forms' if tiny else ''}).\n",
            paths.markdown_table(path_rows, verdicts=not tiny)]
 
+    section("the curse of dimensionality")
     dims_rows: list[dict] = []
     if tiny:
         md += ["## The curse of dimensionality\n",
@@ -396,6 +426,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
                "used in parentheses); Monte Carlo entries are RMSE over independent keys.\n",
                dimensionality.markdown_table(dims_rows)]
 
+    section("point sets against dimension")
     if tiny:
         md += ["## Point sets against dimension\n",
                "Skipped in --tiny mode (run `python -m jaxsample.report.point_set_dims`).\n"]
@@ -405,6 +436,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         _write_csv(out / "point_set_dims.csv", point_set_dims.csv_records(psd_rows))
         md += point_set_dims_section(psd_rows)
 
+    section("gradient estimators")
     if tiny:
         md += ["## Gradient estimators\n",
                "Skipped in --tiny mode (run `python -m jaxsample.report.bench_gradients`).\n"]
@@ -418,6 +450,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         except (ImportError, AttributeError) as error:
             md += ["## Gradient estimators\n", f"Not available in this checkout ({error}).\n"]
 
+    section("gradients with error bars")
     if tiny:
         md += ["## Gradients with error bars; estimates to a requested accuracy\n",
                "Skipped in --tiny mode (run `python -m jaxsample.report.gradient_error_bars`).\n"]
@@ -433,6 +466,7 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
                "`estimate_until` at requested relative standard errors.\n",
                error_bars.markdown(bar_rows, accuracy_rows)]
 
+    section("hard cases")
     hard = _piece("hard_cases")
     progress("[hard cases]")
     hard_rows = hard.hard_case_table()
@@ -444,26 +478,32 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
                "`python -m jaxsample.report.shade_gradients`).\n"]
     else:
         try:
+            section("scene: inverse problem")
             inverse = _piece("inverse_problem")
             progress("[scene: inverse problem]")
             result = inverse.run_inverse_problem(quick=quick, out_dir=str(out))
             md += ["## Scene: recovering a Phong exponent and albedo, the light's position, and a GGX conductor's "
                    "roughness under a quad light, by gradient descent\n",
                    "```\n" + inverse.markdown_summary(result).strip() + "\n```\n"]
+            section("scene: shade's gradients")
             grid = _piece("shade_gradients")
             progress("[scene: shade's gradients against the reference]")
             z_rows = grid.z_table(n=4096, progress=progress, quick=quick)
-            cost_rows = grid.cost_table(n=1 << 14, progress=progress, strategies=("mis",) if quick else ("mis", "brdf"))
+            # --quick times the z-table's compiled programs (n = 4096) rather than compiling each again.
+            cost_rows = grid.cost_table(n=4096 if quick else 1 << 14, progress=progress,
+                                        strategies=("mis",) if quick else ("mis", "brdf"))
             _write_csv(out / "shade_gradients.csv", z_rows)
             _write_csv(out / "boundary_term_cost.csv", cost_rows)
             md += ["## Scene: shade's gradients with the silhouettes' boundary term\n",
                    "Every parameter of the BRDF (log-exponent, albedo) and of the light (a sphere's centre, radius and "
                    "radiance; a triangle's vertices and radiance), by `scene.shade_grad` at 4096 evaluations, against "
-                   "central differences of the float64 `reference_radiance`; then the term's cost (attached, 2^14 "
-                   "evaluations x 12 configurations, medians of 3 runs).\n", grid.markdown(z_rows, cost_rows)]
+                   "central differences of the float64 `reference_radiance`; then the term's cost (attached, "
+                   f"{'2^12' if quick else '2^14'} evaluations per configuration, medians of 3 runs).\n",
+                   grid.markdown(z_rows, cost_rows)]
         except (ImportError, AttributeError) as error:
             md += ["## Scene\n", f"Not available in this checkout ({error}).\n"]
 
+    section("plots")
     try:
         images = _plots(rows, out, dims_rows, tiny)
         md += ["## Plots\n"] + [f"![{name}]({name})" for name in images]
@@ -473,6 +513,8 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
         progress(hint)
         md += ["## Plots\n", hint + "\n"]
 
+    md += ["## Run time by section\n", "| section | seconds |", "|---|---|"]
+    md += [f"| {name} | {seconds:.0f} |" for name, seconds in section.finish()]
     md.append(f"\nTotal run time: {time.perf_counter() - started:.0f} s.\n")
     (out / "report.md").write_text("\n".join(md))
     smoke = f" (a smoke test: {NO_VERDICTS})" if tiny else ""

@@ -221,7 +221,9 @@ def all_integrands() -> list[Integrand]:
     return INTEGRANDS + scene_integrands()
 
 
-def strategies() -> list[Strategy]:
+def strategies(sets=EXTRA_SETS) -> list[Strategy]:
+    """Every (integrand, strategy) of the study; each Sobol' strategy is followed by the same sampler
+    on each point set of `sets` (`with_every_point_set`)."""
     S = []
     hemi = js.UniformHemisphere()
     cosine = js.CosineHemisphere()
@@ -257,7 +259,7 @@ def strategies() -> list[Strategy]:
     S += [Strategy("free_flight", "exponential1", js.Exponential(1.0), importance=True, baseline=True),
           Strategy("free_flight", "exponential0.5", js.Exponential(0.5), importance=True),
           Strategy("free_flight", "exponential1+sobol", js.Exponential(1.0), "sobol", importance=True)]
-    return with_every_point_set(S) + scene_strategies()
+    return with_every_point_set(S, sets) + scene_strategies(sets)
 
 
 def with_every_point_set(strategies_: list[Strategy], sets=EXTRA_SETS) -> list[Strategy]:
@@ -272,7 +274,7 @@ def with_every_point_set(strategies_: list[Strategy], sets=EXTRA_SETS) -> list[S
     return out
 
 
-def scene_strategies() -> list[Strategy]:
+def scene_strategies(sets=EXTRA_SETS) -> list[Strategy]:
     """The GGX lobes: cosine sampling (the baseline), the reflection of normals from the full D, of
     visible normals, and MIS of visible normals with the quad light's solid-angle sampling (power
     heuristic), and visible normals on every point set. The triangle light: area sampling converted
@@ -300,7 +302,7 @@ def scene_strategies() -> list[Strategy]:
                        CosineSphericalTriangle(a, b, c, jnp.array([0.0, 0.0, 1.0])), importance=True),
               Strategy(f"triangle_{name}", "cosine_solid_angle+sobol",
                        CosineSphericalTriangle(a, b, c, jnp.array([0.0, 0.0, 1.0])), "sobol", importance=True)]
-    return with_every_point_set(S)
+    return with_every_point_set(S, sets)
 
 
 def _values_fn(strategy: Strategy, f):
@@ -443,6 +445,14 @@ def row_times(row: dict) -> dict[str, V.Time]:
     return {key: V.Time(**value) for key, value in row["times"].items()}
 
 
+def study_sets(quick: bool = True) -> tuple[str, ...]:
+    """The point sets each Sobol' strategy is repeated on: all of `EXTRA_SETS` in the full study; none
+    in --quick, where they were half of the study's time (Halton's and the Latin hypercube's programs
+    compile slowly, and the hypercube compiles once per n); the point-sets-against-dimension section
+    compares every set in --quick too."""
+    return () if quick else EXTRA_SETS
+
+
 def study_sizes(quick: bool = True, tiny: bool = False) -> tuple[list[int], int, int]:
     """(ns, keys, n_time): tiny n up to 2^10 over 4 keys; quick 2^16 over 16; full 2^22 over 32."""
     if tiny:
@@ -457,7 +467,7 @@ def run_study(quick: bool = True, progress=print, tiny: bool = False, sizes=None
     a (ns, keys, n_time) triple, replaces them)."""
     ns, n_keys, n_time = sizes if sizes is not None else study_sizes(quick, tiny)
     by_name = {i.name: i for i in all_integrands()}
-    all_strategies = strategies()
+    all_strategies = strategies(EXTRA_SETS if tiny else study_sets(quick))
     if integrands:
         all_strategies = [s for s in all_strategies if s.integrand in integrands]
     if tiny:  # a smoke test: every integrand, a few strategies, every code path (random, sobol, MIS)

@@ -34,9 +34,10 @@ Gradient descent on log α starts from α = 0.05, where the highlight is a quart
 first moment decaying by 0.5, not 0.9: see ROUGHNESS_BETA1) on the unbiased surrogate above, each
 view's estimate and gradient from independent keys (`conductor_quad_program`). The attached MIS
 gradient of α moves the BRDF samples (visible-normal reflection) across the light's edges: the
-silhouette's boundary term is part of it. The same program checks the gradients in α and in the
-quad's corner against central differences of the quadrature, on four configurations
-(`CONDUCTOR_QUAD_CASES`).
+silhouette's boundary term is part of it. The fit differentiates log α alone (its program has one
+tangent per point, not four); the gradient checks take log α and the quad's corner (`--quick`: log α,
+with the fit's compiled program) against central differences of the quadrature, on four
+configurations (`CONDUCTOR_QUAD_CASES`).
 """
 
 from __future__ import annotations
@@ -240,15 +241,25 @@ def conductor_quad_scene(config, params):
 _PROGRAMS = {}
 
 
-def conductor_quad_program(n, strategy="mis", mode="attached"):
+def gradient_columns(wrt=("corner", "log_alpha")) -> tuple[str, ...]:
+    """The names of the gradient's columns when differentiating the parameters `wrt` (ravel_pytree
+    order: the dict's keys sorted)."""
+    return tuple(name for name in CONDUCTOR_QUAD_PARAMETERS if name.split("[")[0] in wrt)
+
+
+def conductor_quad_program(n, strategy="mis", mode="attached", wrt=("corner", "log_alpha")):
     """jit: (configs, params, keys) -> (value, value stderr, gradient, gradient stderr) per configuration,
     a leading axis of K of each (`lax.map`, one compiled program for any K configurations of that shape).
 
     The value is `shade`'s estimate of L_o, one per channel (shape (3,)); the gradient `shade_grad`'s in
-    (corner, log α) per channel (shape (3, 4), the silhouette's boundary term inside), from an
-    independent key: so value and gradient are independent, and 2 (value − L) · gradient is an
-    unbiased gradient of (E value − L)²."""
-    cache_key = (n, strategy, mode)
+    the parameters `wrt` ("corner", "log_alpha" or both) per channel (shape (3, P), columns
+    `gradient_columns(wrt)`, the silhouette's boundary term inside), from an independent key: so value
+    and gradient are independent, and 2 (value − L) · gradient is an unbiased gradient of (E value − L)².
+    Each parameter differentiated is a tangent per point: log α alone is a quarter of the program."""
+    wrt = tuple(sorted(wrt))
+    if not wrt or not set(wrt) <= {"corner", "log_alpha"}:
+        raise ValueError(f"conductor_quad_program: wrt must name 'corner' and/or 'log_alpha', got {wrt!r}")
+    cache_key = (n, strategy, mode, wrt)
     if cache_key not in _PROGRAMS:
         from jax.flatten_util import ravel_pytree
 
@@ -259,7 +270,8 @@ def conductor_quad_program(n, strategy="mis", mode="attached"):
             config, params, key = args
             key_value, key_gradient = jax.random.split(key)
             value = scene.shade(*conductor_quad_scene(config, params), key_value, n, strategy=strategy, mode=mode)
-            grad = scene.shade_grad(lambda q: conductor_quad_scene(config, q), params, key_gradient, n,
+            grad = scene.shade_grad(lambda q: conductor_quad_scene(config, {**params, **q}),
+                                    {name: params[name] for name in wrt}, key_gradient, n,
                                     strategy=strategy, mode=mode)
             return value.mean, value.stderr, flat(grad.mean), flat(grad.stderr)
 
@@ -312,19 +324,23 @@ def conductor_quad_reference(case, step=1e-4, **quadrature):
     return base, np.asarray(grad).T
 
 
-def conductor_quad_z_scores(n=4096, seed=24, cases=CONDUCTOR_QUAD_CASES, **quadrature):
-    """z = (estimate − reference)/stderr of the value and of the gradient in (corner, log α), per case:
-    `shade`/`shade_grad`, default strategy ("mis") and mode ("attached"); the reference's own error
-    (differencing, the quadrature at a horizon kink) is taken as 1e-4 relative, in quadrature."""
+def conductor_quad_z_scores(n=4096, seed=24, cases=CONDUCTOR_QUAD_CASES, wrt=("corner", "log_alpha"), **quadrature):
+    """z = (estimate − reference)/stderr of the value and of the gradient in the parameters `wrt`
+    (columns "parameters"), per case: `shade`/`shade_grad`, default strategy ("mis") and mode
+    ("attached"); the reference's own error (differencing, the quadrature at a horizon kink) is taken
+    as 1e-4 relative, in quadrature."""
     configs, params = conductor_quad_inputs(cases)
     keys = jax.random.split(jax.random.key(seed), len(cases))
-    value, value_err, grad, grad_err = (np.asarray(a, float) for a in conductor_quad_program(n)(configs, params, keys))
+    program = conductor_quad_program(n, wrt=wrt)
+    value, value_err, grad, grad_err = (np.asarray(a, float) for a in program(configs, params, keys))
+    columns = gradient_columns(wrt)
     references = [conductor_quad_reference(case, **quadrature) for case in cases]
     ref_value = np.array([r[0] for r in references])
-    ref_grad = np.stack([r[1] for r in references])
+    ref_grad = np.stack([r[1] for r in references])[..., [CONDUCTOR_QUAD_PARAMETERS.index(c) for c in columns]]
     z_value = (value - ref_value) / np.sqrt(value_err ** 2 + (1e-4 * np.abs(ref_value)) ** 2)
     z_grad = (grad - ref_grad) / np.sqrt(grad_err ** 2 + (1e-4 * np.abs(ref_grad) + 1e-7) ** 2)
-    return {"z_value": z_value, "z_gradient": z_grad, "value": value, "reference_value": ref_value,
+    return {"parameters": list(columns), "z_value": z_value, "z_gradient": z_grad, "value": value,
+            "reference_value": ref_value,
             "gradient": grad, "gradient_stderr": grad_err, "reference_gradient": ref_grad}
 
 
@@ -333,11 +349,11 @@ def fit_roughness(iterations, n, key, mode="attached", strategy="mis", views=Non
     """Gradient descent (Adam with first-moment decay `beta1`) on log α from START_ROUGHNESS toward the observations
     (float64 references at TRUE_ROUGHNESS); one call of `conductor_quad_program` per step gives every
     view's estimate and its gradient from independent keys. α is the geometric mean of the last fifth
-    of the iterates."""
+    of the iterates. The program differentiates log α alone (all the fit reads)."""
     views = roughness_views() if views is None else np.asarray(views, np.float32)
     observed = roughness_observations(views) if observed is None else np.asarray(observed)
     count = views.shape[0]
-    program = conductor_quad_program(n, strategy, mode)
+    program = conductor_quad_program(n, strategy, mode, wrt=("log_alpha",))
     tile = lambda v: jnp.tile(jnp.asarray(v, jnp.float32), (count, 1))  # noqa: E731
     configs = (tile(POINT), tile(NORMAL), jnp.asarray(views), tile(QUAD_EDGE_U), tile(QUAD_EDGE_V),
                jnp.full((count,), QUAD_RADIANCE, jnp.float32))
@@ -352,7 +368,7 @@ def fit_roughness(iterations, n, key, mode="attached", strategy="mis", views=Non
         residual = value - observed                                  # (views, channels)
         # d/d log α of Σ (L̂ − L)² over views and channels, unbiased: the residual and the gradient
         # come from independent keys.
-        grad = float(np.sum(2.0 * residual * gradient[..., CONDUCTOR_QUAD_PARAMETERS.index("log_alpha")]))
+        grad = float(np.sum(2.0 * residual * gradient[..., 0]))
         history["loss"].append(float(np.sum(residual * residual)))
         m = beta1 * m + (1.0 - beta1) * grad
         v = 0.999 * v + 0.001 * grad * grad
@@ -448,10 +464,11 @@ def run_inverse_problem(quick: bool = True, out_dir=None, *, iterations: int | N
             for (strategy, mode), k in zip(FITS, jax.random.split(fit_key, len(FITS)))]
     gradient = light_position_gradient(1 << 14 if quick else 1 << 17, gradient_key)
     gradient_key, roughness_key = jax.random.split(gradient_key)
-    # The fit's 4 views and the 4 gradient configurations share one compiled program (same n).
+    # --quick: the fit's 4 views and the 4 gradient configurations share one compiled program (same n,
+    # log α alone); the full run checks the corner's gradient too.
     roughness_samples = 4096 if quick else 1 << 15
     roughness = fit_roughness(60 if quick else 200, roughness_samples, roughness_key)
-    conductor_z = conductor_quad_z_scores(n=roughness_samples)
+    conductor_z = conductor_quad_z_scores(n=roughness_samples, wrt=("log_alpha",) if quick else ("corner", "log_alpha"))
     result = {
         "truth": {"exponent": TRUE_EXPONENT, "albedo": TRUE_ALBEDO, "light_angles": TRUE_LIGHT_ANGLES},
         "start": {"exponent": START_EXPONENT, "albedo": START_ALBEDO, "light_angles": START_LIGHT_ANGLES},
@@ -459,7 +476,7 @@ def run_inverse_problem(quick: bool = True, out_dir=None, *, iterations: int | N
         "fits": fits,
         "light_position_gradient": gradient,
         "roughness_fit": roughness,
-        "conductor_quad_z": {k: np.asarray(v).tolist() for k, v in conductor_z.items()},
+        "conductor_quad_z": {k: np.asarray(v).tolist() if k != "parameters" else v for k, v in conductor_z.items()},
         "plot": None,
         "quick": quick,
     }
@@ -505,7 +522,7 @@ def markdown_summary(result) -> str:
                      "against central differences of the float64 reference, z = (estimate − reference)/stderr "
                      "per configuration and channel:")
         lines.append(f"  {'configuration':>13}  {'value':>6}  "
-                     + "  ".join(f"{name:>9}" for name in CONDUCTOR_QUAD_PARAMETERS))
+                     + "  ".join(f"{name:>9}" for name in z.get("parameters", CONDUCTOR_QUAD_PARAMETERS)))
         for i, (zv, zg) in enumerate(zip(z["z_value"], z["z_gradient"])):
             for channel, v, g in zip(CHANNELS, zv, zg):
                 lines.append(f"  {f'{i} {channel}':>13}  {v:+6.2f}  " + "  ".join(f"{x:+9.2f}" for x in g))

@@ -13,6 +13,8 @@ and radiance; a triangle's three vertices and radiance).
 
 from __future__ import annotations
 
+import functools
+
 import jax.numpy as jnp
 import numpy as np
 
@@ -174,16 +176,19 @@ def parameter_names(kind):
     return names
 
 
+@functools.lru_cache(maxsize=None)
 def _program(kind, strategy, mode, n, boundary):
+    """jit: (geometry, params, keys) -> flat (means, stderrs) per configuration; one per process for
+    each (kind, strategy, mode, n, boundary), so the cost table reuses the z-table's compiled programs
+    at the same n."""
     import jax
     from jax.flatten_util import ravel_pytree
-    from ..scene.direct import _shade_grad
 
     rows, to_params, to_scene = CASES[kind]
 
     def one(geometry, params, key):
-        return _shade_grad(lambda q: to_scene(geometry, q), params, key, n, strategy, mode, "power", "random",
-                           None, None, None, boundary)
+        return scene.shade_grad(lambda q: to_scene(geometry, q), params, key, n, strategy=strategy, mode=mode,
+                                boundary_term=boundary)
 
     def run(geometry, params, keys):
         # lax.map, not vmap, over configurations: the same values, and a smaller program to compile.
@@ -286,8 +291,6 @@ def value_cost_table(n=1 << 22, repeats=5, progress=print):
     import time
 
     import jax
-    from ..estimators.engine import run_stream
-    from ..scene.direct import _program as shade_program
 
     rows = []
     for kind in CASES:
@@ -301,9 +304,8 @@ def value_cost_table(n=1 << 22, repeats=5, progress=print):
                 progress(f"  value cost: {kind} light, {strategy}, term {'in' if boundary else 'out'}")
 
                 def run(key, boundary=boundary):
-                    fn, dims, count = shade_program(*to_scene(geometry, params), strategy, "attached", "power", n,
-                                                    jnp.float32, boundary)
-                    return run_stream(fn, dims, key, count, out_shape=(), dtype=jnp.float32).mean
+                    return scene.shade(*to_scene(geometry, params), key, n, strategy=strategy,
+                                       boundary_term=boundary).mean
 
                 program = jax.jit(run)
                 program(jax.random.key(0)).block_until_ready()

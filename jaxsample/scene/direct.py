@@ -311,10 +311,10 @@ def _check_shade_grad(arguments):
 
 
 @compiled_entry("n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype",
-                check=_check_shade)
+                "boundary_term", check=_check_shade)
 def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: str = "mis",
           mode: str = "attached", heuristic: str = "power", beta: float | None = None, uniforms="random",
-          mesh=None, chunk_size: int | None = None, dtype=None) -> Estimate:
+          mesh=None, chunk_size: int | None = None, dtype=None, boundary_term: bool = True) -> Estimate:
     """Outgoing radiance L_o(point, ω_o) = ∫ f_r L_i cos⁺θ_i dω_i under `lights`, no occluders.
 
     Args:
@@ -340,6 +340,10 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
         β = `beta`, default 2, a concrete number > 0) or "balance". `beta` with another strategy is
         a ValueError.
       uniforms, mesh, chunk_size, dtype: as in `jaxsample.estimate`.
+      boundary_term: True (default) includes the silhouettes' boundary term in the derivative (it has
+        value 0: the estimate is the same either way). False leaves it out, and the gradient is then
+        biased wherever a light's edge moves across the samples; it exists to measure what the term
+        contributes and costs.
 
     Colour: BRDF parameters (albedo, η, k) and light radiances may carry a trailing channel axis of C
     channels (`jaxsample.scene.colour`); then L_o has one value per channel, each with its own
@@ -349,10 +353,10 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     Returns: an `Estimate` of L_o, shape () or (C,); `n` is the evaluation count and `variance` the
     per-evaluation variance, so strategies compare at equal cost.
     """
-    n = _check_options("shade", strategy, mode, heuristic, beta, n)
+    n = _check_options("shade", strategy, mode, heuristic, beta, n, boundary_term)
     dtype = resolve_float_dtype("shade", dtype)
     values_fn, dims, count, channels = _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n,
-                                                dtype, beta=beta)
+                                                dtype, boundary_term, beta=beta)
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh,
                      chunk_size=chunk_size, out_shape=channels, dtype=dtype, owner="shade")
     if count == n:
@@ -360,8 +364,10 @@ def shade(point, normal, wo, brdf, lights, key: jax.Array, n: int, *, strategy: 
     return est.per_evaluation(n)  # one pair costs two evaluations
 
 
-def _check_options(owner, strategy, mode, heuristic, beta, n):
+def _check_options(owner, strategy, mode, heuristic, beta, n, boundary_term=True):
     check_choice(owner, "strategy", strategy, STRATEGIES)
+    if not isinstance(boundary_term, (bool, np.bool_)):
+        raise ValueError(f"{owner}: parameter 'boundary_term' must be True or False; got {boundary_term!r}")
     check_mode(owner, mode)
     if beta is not None and not isinstance(beta, (int, float, np.integer, np.floating)):
         raise ValueError(f"{owner}: parameter 'beta' must be a concrete number (it selects the program of the "
@@ -378,8 +384,7 @@ def _check_options(owner, strategy, mode, heuristic, beta, n):
 def _program(point, normal, wo, brdf, lights, strategy, mode, heuristic, n, dtype, boundary=True, beta=None):
     """(values_fn, uniform dims, count): the per-evaluation (per-pair for "mis") values of `shade`,
     interior estimate plus the silhouettes' boundary term (value 0), from (count, dims) uniforms.
-    `boundary=False` leaves the term out (a biased gradient), only so that the report can measure
-    what the term costs."""
+    `boundary=False` leaves the term out (a biased gradient: `shade`'s `boundary_term`)."""
     point, normal, wo = (jnp.asarray(v, dtype) for v in (point, normal, wo))
     point, normal, wo, brdf, lights = _guarded(strategy, mode, point, normal, wo, brdf, as_lights("shade", lights))
     shading = _Shading(point, normal, wo, brdf, lights, mode)
@@ -451,10 +456,10 @@ def _rim_uniforms(seed, rims):
 
 
 @compiled_entry("make", "n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype",
-                check=_check_shade_grad)
+                "boundary_term", check=_check_shade_grad)
 def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, strategy: str = "mis",
                mode: str = "attached", heuristic: str = "power", beta: float | None = None, uniforms="random",
-               mesh=None, chunk_size: int | None = None, dtype=None) -> Estimate:
+               mesh=None, chunk_size: int | None = None, dtype=None, boundary_term: bool = True) -> Estimate:
     """∇θ of `shade`'s estimate with its standard error; `(point, normal, wo, brdf, lights) =
     make(θ)`, θ = `params` (a pytree of floats: an exponent, a light's centre, vertices ...).
 
@@ -465,7 +470,7 @@ def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, 
     each leaf of the result has shape (C,) + the parameter's shape: one gradient per channel.
     """
     return _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype,
-                       beta=beta)
+                       boundary_term, beta=beta)
 
 
 _FORWARD_PARAMETERS = 1
@@ -473,7 +478,7 @@ _FORWARD_PARAMETERS = 1
 
 def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype, boundary=True,
                 beta=None):
-    n = _check_options("shade_grad", strategy, mode, heuristic, beta, n)
+    n = _check_options("shade_grad", strategy, mode, heuristic, beta, n, boundary)
     flat, unravel = ravel_pytree(params)
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"shade_grad: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")

@@ -34,6 +34,12 @@ def test_tiny_report_writes_tables_and_plots_with_finite_numbers(tmp_path):
     assert "fastest to reach it" not in text and not (out / "verdicts.csv").exists()  # and it draws none
     for name in ("samplers.csv", "convergence.csv", "hard_cases.csv"):
         assert (out / name).exists() and (out / name).stat().st_size > 0, name
+    # Each section's wall time, printed as it ends and tabled at the end, in the order they ran.
+    timing = text[text.index("## Run time by section"):]
+    sections = ("samplers", "speed against error", "speed of every public path", "hard cases", "plots")
+    places = [timing.index(f"| {name} | ") for name in sections]
+    assert places == sorted(places), places
+    assert "  (samplers: " in result.stdout and "  (plots: " in result.stdout
     # Plots need the `plot` extra; without it the report says how to get them.
     try:
         import matplotlib  # noqa: F401

@@ -257,8 +257,21 @@ def test_roughness_and_quad_corner_gradients_match_the_reference():
     assert np.all(np.abs(z["gradient"][0, :, 0]) > 10 * z["gradient_stderr"][0, :, 0])
 
 
+def test_the_log_alpha_program_checks_its_one_column_against_the_log_alpha_reference():
+    """The report's --quick check (and the fit's program): log α alone, one gradient column per
+    channel, judged against the reference's log α column. FFR 1.6e-4: 12 values and 12 gradients at
+    |z| < 4.5 (6.8e-6 each)."""
+    z = ip.conductor_quad_z_scores(n=4096, seed=24, panels=32, wrt=("log_alpha",))
+    assert z["parameters"] == ["log_alpha"]
+    assert np.shape(z["z_gradient"]) == (len(ip.CONDUCTOR_QUAD_CASES), 3, 1)
+    assert float(np.max(np.abs(z["z_value"]))) < Z_LIMIT, z["z_value"]
+    assert float(np.max(np.abs(z["z_gradient"]))) < Z_LIMIT, np.round(z["z_gradient"], 2)
+    # α moves the highlight: every channel's ∂L/∂log α is resolved, not noise about 0.
+    assert np.all(np.abs(z["gradient"][..., 0]) > 3 * z["gradient_stderr"][..., 0]), z["gradient"]
+
+
 def test_roughness_fit_recovers_alpha():
-    """40 Adam steps on log α through shade's gradient (4 views, the gradient program of the test above)."""
+    """40 Adam steps on log α through shade's gradient (4 views, a program differentiating log α alone)."""
     views = ip.roughness_views()
     observed = ip.roughness_observations(views)
     result = ip.fit_roughness(40, 4096, jax.random.key(9), views=views, observed=observed)
