@@ -528,7 +528,7 @@ def main(argv=None) -> int:
     report = commands.add_parser("report", help="run the speed-against-error study")
     report.add_argument("--out", default="report", help="output folder (default: report/)")
     report.add_argument("--quick", action="store_true",
-                        help="smaller n, fewer keys and point sets (about 11 minutes on 2 cores)")
+                        help="smaller n, fewer keys and point sets (about 10 minutes on 2 cores)")
     report.add_argument("--tiny", action="store_true",
                         help="a smoke test of the code paths at the smallest sizes, few sections: no verdicts")
     args = parser.parse_args(argv)
