@@ -19,13 +19,13 @@ rest is reachable through its module (`js.samplers.RejectionInfo`, `js.estimator
 
 from . import edges, estimators, numerics, quadrature, samplers, scene, uniforms
 from .estimators import (Estimate, estimate, estimate_antithetic, estimate_control_variate, estimate_grad,
-                         estimate_guaranteed, estimate_mis, estimate_ratio, estimate_until, expectation,
-                         expectation_grad)
+                         estimate_guaranteed, estimate_mis, estimate_ratio, estimate_resampled, estimate_until,
+                         expectation, expectation_grad)
 from .samplers import (CosineHemisphere, Discrete, Exponential, Mixture, Oriented, PhongLobe, PiecewiseConstant1D,
                        PiecewiseConstant2D, Power, Rejection, Sampler, Transformed, TruncatedExponential, UniformBox,
                        UniformCone, UniformDisk, UniformHemisphere, UniformSphere, UniformTriangle, VonMisesFisher,
                        parameter)
-from .samplers import Bilinear, HenyeyGreenstein, Linear, Normal, Normal2D, Tent
+from .samplers import Bilinear, HenyeyGreenstein, Linear, Normal, Normal2D, SmoothStep, Tent, TrimmedLogistic
 from .samplers import CosineSphericalTriangle, SphericalRectangle, SphericalTriangle
 from .samplers import GGX, Beckmann, MicrofacetReflection, VisibleNormals
 
@@ -57,8 +57,8 @@ __all__ = [
     # planar, one-dimensional, discrete and tabulated samplers
     "UniformDisk", "UniformTriangle", "UniformBox", "Exponential", "TruncatedExponential", "Power",
     "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D",
-    # phase function, Gaussians and low-order polynomial densities
-    "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear",
+    # phase function, Gaussians, low-order polynomial and other smooth 1-D densities
+    "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     # microfacet normal distributions and the lobes built on them
     "GGX", "Beckmann", "VisibleNormals", "MicrofacetReflection",
     # solid-angle sampling of the triangles and rectangles a point sees
@@ -69,7 +69,7 @@ __all__ = [
     "Sampler", "parameter",
     # estimators and their result
     "Estimate", "estimate", "estimate_mis", "estimate_ratio", "estimate_antithetic",
-    "estimate_control_variate", "estimate_until", "estimate_guaranteed",
+    "estimate_control_variate", "estimate_until", "estimate_guaranteed", "estimate_resampled",
     # gradients
     "expectation", "estimate_grad", "expectation_grad",
     # modules

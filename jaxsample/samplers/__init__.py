@@ -26,6 +26,7 @@ from .phong import PhongLobe
 from .piecewise import PiecewiseConstant1D, PiecewiseConstant2D
 from .polynomial import Bilinear, Linear, Tent
 from .power import Power
+from .ramps import SmoothStep, TrimmedLogistic
 from .rejection import Rejection, RejectionInfo
 from .sphere import UniformHemisphere, UniformSphere
 from .spherical_rectangle import SphericalRectangle
@@ -40,7 +41,7 @@ __all__ = [
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",
-    "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear",
+    "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     "GGX", "Beckmann", "MicrofacetDistribution", "VisibleNormals", "MicrofacetReflection",
     "SphericalTriangle", "CosineSphericalTriangle", "SphericalRectangle",
 ]

@@ -111,6 +111,10 @@ def sphere_rejection():
     return js.UniformSphere(method="rejection")
 
 
+def sphere_equal_area():
+    return js.UniformSphere(method="equal_area")
+
+
 def hemisphere():
     return js.UniformHemisphere()
 
@@ -284,6 +288,14 @@ def linear(a, b):
     return js.Linear(a, b)
 
 
+def smooth_step(low, high):
+    return js.SmoothStep(low, high)
+
+
+def trimmed_logistic(scale, low, high):
+    return js.TrimmedLogistic(scale, low, high)
+
+
 def bilinear(w):
     return js.Bilinear(w)
 
@@ -409,6 +421,8 @@ ENTRIES = [
           positive_at_edges=False),
     Entry("UniformSphere-rejection", sphere_rejection, (_C(()),), DIRECTION_POINTS, 400_000, 128, 65_536,
           positive_at_edges=False),
+    Entry("UniformSphere-equal-area", sphere_equal_area, (_C(()),), DIRECTION_POINTS, 400_000, 128, 65_536,
+          _DIRECTIONAL_INVERSE, positive_at_edges=False),
     Entry("UniformHemisphere", hemisphere, (_C(()),), DIRECTION_POINTS, 400_000, 128, 65_536, _DIRECTIONAL_INVERSE,
           positive_at_edges=False),
     Entry("CosineHemisphere-malley", cosine_malley, (_C(()),), DIRECTION_POINTS, 400_000, 128, 65_536,
@@ -547,6 +561,17 @@ ENTRIES = [
                              _C((1e6, 1e-6), chi2=False)),
           np.array([0.0, 1.0, 0.5, 1e-30, 2.0, -0.5]), 1_000_000, inverse=_LINE_INVERSE,
           positive_at_edges=False),  # a = 0: u = 0 gives x = 0, where the density is 0
+    # The smooth step rises from p = 0 at a; a wide and a narrow interval, and one far from 0 (in
+    # float64: float32 rounds x = 1000 + 5t to 6e-5, so p ∝ t² near a is resolved to 2e-4 at t = 0.1).
+    Entry("SmoothStep", smooth_step, (_C((-1.0, 2.0)), _C((0.0, 1e-3), chi2=False),
+                                      _C((1e3, 1e3 + 5.0), x64=True, chi2=False)),
+          np.array([-1.0, 0.5, 2.0, -2.0, 3.0, 1.999]), 1_000_000, inverse=_LINE_INVERSE,
+          pdf_rtol=1e-4, positive_at_edges=False),  # u = 0 gives x = a, where the density is 0
+    # Across the peak, deep in the right tail (F(a) = 1 - e^-10), in the left tail, and narrow.
+    Entry("TrimmedLogistic", trimmed_logistic,
+          (_C((1.0, -2.0, 3.0)), _C((0.1, 1.0, 2.0)), _C((2.0, -20.0, -5.0), chi2=False),
+           _C((0.5, -0.01, 0.01), chi2=False)),
+          np.array([-2.0, 0.0, 1.5, 3.0, -3.0, 4.0]), 1_000_000, inverse=_LINE_INVERSE),
     Entry("Bilinear", bilinear, (_C(((1.0, 2.0, 3.0, 4.0),)), _C(((0.0, 0.0, 1.0, 3.0),)),
                                  _C(((0.0, 1.0, 1.0, 0.0),), chi2=False), _C(((1e6, 1.0, 0.0, 1e-6),), chi2=False)),
           np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
