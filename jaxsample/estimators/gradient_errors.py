@@ -40,8 +40,32 @@ from .gradients import _GRADIENTS, expectation, expectation_values, score_surrog
 __all__ = ["estimate_grad", "expectation_grad"]
 
 
-def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0, **kw) -> Estimate:
-    """Stream ∇θ of point_value(f_or_g, sampler, u_row) over n points; Estimate shaped like params."""
+ANTITHETIC = ("rotate", "reflect")
+
+
+def antithetic_partner(u, sampler, antithetic: str):
+    """The partner of each row of uniforms `u` in an antithetic pair: "reflect", 1 − u in every
+    coordinate; "rotate", the sampler's periodic coordinates (an azimuth) moved by 1/2 modulo 1 and
+    the others kept, so that a direction is paired with the one turned by π about the lobe's axis."""
+    if antithetic == "reflect":
+        return 1.0 - u
+    shifted = u[:, list(sampler.periodic_dims)] + 0.5
+    return u.at[:, list(sampler.periodic_dims)].set(jnp.where(shifted >= 1.0, shifted - 1.0, shifted))
+
+
+def _check_antithetic(owner, antithetic, sampler, n):
+    check_choice(owner, "antithetic", antithetic, ANTITHETIC)
+    if antithetic == "rotate" and not sampler.periodic_dims:
+        raise ValueError(f"{owner}: antithetic='rotate' turns a sampler's azimuth by π, and "
+                         f"{type(sampler).__name__} has no periodic coordinate; use antithetic='reflect'")
+    if n % 2:
+        raise ValueError(f"{owner}: parameter 'n' must be even with antithetic pairs (n/2 pairs); got {n}")
+
+
+def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0, antithetic=None,
+                          **kw) -> Estimate:
+    """Stream ∇θ of point_value(f_or_g, sampler, u_row) over n points (n/2 antithetic pairs, each
+    pair's mean one value, when `antithetic` names a pairing); Estimate shaped like params."""
     flat, unravel = ravel_pytree(params)
     if not jnp.issubdtype(flat.dtype, jnp.floating):
         raise TypeError(f"{owner}: parameter 'params' must be a pytree of floats; got dtype {flat.dtype}")
@@ -57,7 +81,7 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
         raise ValueError(f"{owner}: the integrand must return a scalar (one value per sample); got shape "
                          f"{out.shape}. For a vector-valued integrand, take one component per call.")
 
-    def values_fn(u):
+    def gradients(u):
         def one(row):
             def value(theta):
                 f, s = make(unravel(theta))
@@ -65,34 +89,47 @@ def _per_sample_gradients(make, params, key, n, point_value, owner, extra_dims=0
             return jax.grad(value)(flat)
         return jax.vmap(one)(u)
 
-    est = run_stream(values_fn, dims, key, n, out_shape=flat.shape, owner=owner, **kw)
+    if antithetic is None:
+        est = run_stream(gradients, dims, key, n, out_shape=flat.shape, owner=owner, **kw)
+    else:
+        _check_antithetic(owner, antithetic, sampler, n)
+        est = run_stream(lambda u: 0.5 * (gradients(u) + gradients(antithetic_partner(u, sampler, antithetic))),
+                         dims, key, n // 2, out_shape=flat.shape, owner=owner, **kw).per_evaluation(n)
     return dataclasses.replace(jax.tree_util.tree_map(unravel, est), gradient=True)
 
 
-@compiled_entry("make", "n", "mode", "uniforms", "mesh", "chunk_size", "dtype")
+@compiled_entry("make", "n", "mode", "antithetic", "uniforms", "mesh", "chunk_size", "dtype")
 def estimate_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: jax.Array, n: int, *,
-                  mode: str = "attached", uniforms="random", mesh=None, chunk_size: int | None = None,
-                  dtype=None) -> Estimate:
+                  mode: str = "attached", antithetic: str | None = None, uniforms="random", mesh=None,
+                  chunk_size: int | None = None, dtype=None) -> Estimate:
     """∇θ of ∫ f dμ as estimated by `jaxsample.estimate(f, sampler, key, n, mode=mode)`, with its
     standard error; `(f, sampler) = make(θ)`, θ = `params` (a pytree of floats).
 
     The mean is the gradient that `jax.grad` of that estimate's mean gives (same samples, to float
     rounding); `stderr` has the structure of `params`. `mode`, `uniforms`, `mesh`, `chunk_size`,
     `dtype`: as in `estimate` (`mode` decides whether samples and densities move with θ).
+
+    `antithetic`: None (independent samples), or n/2 pairs whose per-sample gradients are averaged
+    (unbiased: each member of a pair is a uniform point; the stderr is over the pairs, `variance`
+    restated per evaluation; n even). "rotate" pairs a direction with the one turned by π about
+    the lobe's axis (the sampler's periodic coordinate moved by 1/2): the antithetic sampling of
+    glossy BRDF derivatives of Zhang et al. 2021, whose derivative in a rotation of the lobe is odd
+    about the axis, so that the pair cancels it where the rest of the integrand is smooth. "reflect"
+    pairs u with 1 − u, as `estimate_antithetic`.
     """
     check_choice("estimate_grad", "mode", mode, ("attached", "detached"))
 
     def point_value(f, sampler, row):
         return integrand_values(f, sampler, row[None], mode=mode)[0]
 
-    return _per_sample_gradients(make, params, key, n, point_value, "estimate_grad", uniforms=uniforms,
-                                 mesh=mesh, chunk_size=chunk_size, dtype=dtype)
+    return _per_sample_gradients(make, params, key, n, point_value, "estimate_grad", antithetic=antithetic,
+                                 uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype)
 
 
-@compiled_entry("make", "n", "gradient", "uniforms", "mesh", "chunk_size", "dtype")
+@compiled_entry("make", "n", "gradient", "antithetic", "uniforms", "mesh", "chunk_size", "dtype")
 def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: jax.Array, n: int, *,
-                     gradient: str = "pathwise", baseline: Any = None, uniforms="random", mesh=None,
-                     chunk_size: int | None = None, dtype=None) -> Estimate:
+                     gradient: str = "pathwise", baseline: Any = None, antithetic: str | None = None,
+                     uniforms="random", mesh=None, chunk_size: int | None = None, dtype=None) -> Estimate:
     """∇θ E_{p_θ}[g] by the chosen per-sample estimator, with its standard error; `(g, sampler) =
     make(θ)`, θ = `params` (a pytree of floats).
 
@@ -101,7 +138,8 @@ def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: j
     "leave_one_out", whose gradient is that of `expectation(..., baseline="leave_one_out")`: one
     pass over the samples gives the mean ḡ of g, a second streams the per-sample terms
     ∇g_i + n/(n-1) (g_i - ḡ) ∇log p_i on the same samples (their stderr is the large-n one: the
-    terms share ḡ). `uniforms`, `mesh`, `chunk_size`, `dtype`: as in `estimate`.
+    terms share ḡ). `antithetic`: None, "rotate" or "reflect", as in `estimate_grad` (not with the
+    leave-one-out baseline). `uniforms`, `mesh`, `chunk_size`, `dtype`: as in `estimate`.
     """
     check_choice("expectation_grad", "gradient", gradient, _GRADIENTS)
     if baseline is not None and gradient != "score":
@@ -109,13 +147,16 @@ def expectation_grad(make: Callable[[Any], tuple[Callable, Any]], params, key: j
     common = dict(uniforms=uniforms, mesh=mesh, chunk_size=chunk_size, dtype=dtype)
     if isinstance(baseline, str):
         check_choice("expectation_grad", "baseline", baseline, ("leave_one_out",))
+        if antithetic is not None:
+            raise ValueError("expectation_grad: parameter 'antithetic' does not combine with baseline='leave_one_out'")
         return _leave_one_out(make, params, key, n, common)
 
     def point_value(g, sampler, row):
         return expectation_values(g, sampler, row[None], gradient=gradient, baseline=baseline)[0]
 
     extra = uniform_dims(make(params)[1], gradient) - make(params)[1].uniform_dims
-    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", extra_dims=extra, **common)
+    return _per_sample_gradients(make, params, key, n, point_value, "expectation_grad", extra_dims=extra,
+                                 antithetic=antithetic, **common)
 
 
 def _leave_one_out(make, params, key, n, common) -> Estimate:

@@ -457,14 +457,18 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
     else:
         error_bars = _piece("gradient_error_bars")
         bar_rows = error_bars.gradient_table(quick=quick, progress=progress)
+        antithetic_rows = error_bars.antithetic_table(quick=quick, progress=progress)
         accuracy_rows = error_bars.accuracy_table(quick=quick, progress=progress)
         _write_csv(out / "gradient_error_bars.csv", bar_rows)
+        _write_csv(out / "antithetic_gradients.csv", antithetic_rows)
         _write_csv(out / "accuracy.csv", accuracy_rows)
         md += ["## Gradients with error bars; estimates to a requested accuracy\n",
                "d/dn E_{Phong(n)}[cos^k] by `expectation_grad` (gradient ± its reported stderr, exact value, "
-               "per-sample variance, and 1/(variance × time): gradient accuracy per second); then "
-               "`estimate_until` at requested relative standard errors.\n",
-               error_bars.markdown(bar_rows, accuracy_rows)]
+               "per-sample variance, and 1/(variance × time): gradient accuracy per second); antithetic pairs "
+               "(`antithetic=\"rotate\"`: the azimuth turned by π; `\"reflect\"`: u and 1 − u) against independent "
+               "samples, variance per evaluation at equal n; then `estimate_until` at requested relative standard "
+               "errors.\n",
+               error_bars.markdown(bar_rows, accuracy_rows, antithetic_rows)]
 
     section("hard cases")
     hard = _piece("hard_cases")

@@ -7,12 +7,15 @@ cos θ, m = n + 1; `PhongLobe.measure_valued_pair`), with E[μ^j] = m/(m + j), s
 (m/(m+2k)) (1 - 2m/(m+k) + m/(m+2k)) / m² - (k/(m+k)²)² = 6.9010e-4 at n = 5, k = 2.
 """
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxsample as js
+from keyring import next_key
 
 EXPONENT, POWER = 5.0, 2
 EXACT_GRADIENT = POWER / (EXPONENT + POWER + 1.0) ** 2
@@ -137,3 +140,49 @@ def test_bad_inputs_raise():
         js.expectation_grad(lambda p: (lambda w: w[2], js.VonMisesFisher(p)), 3.0, key, 64, gradient="measure_valued")
     with pytest.raises(TypeError, match="floats"):
         js.estimate_grad(lambda p: (lambda w: w[2], js.CosineHemisphere()), jnp.int32(3), key, 64)
+
+
+def _rotated_lobe(theta):
+    """∫ (1 + ω_x + ω_y²/2) ρ_θ dω over a Phong 50 lobe about (sin θ, 0, cos θ): d/dθ = cos θ · 51/52."""
+    axis = jnp.stack([jnp.sin(theta), 0.0, jnp.cos(theta)])
+    lobe = js.Oriented(js.PhongLobe(50.0), axis)
+    return (lambda w: (1.0 + w[0] + 0.5 * w[1] ** 2) * lobe.pdf(w)), lobe
+
+
+def test_antithetic_pairs_stay_unbiased_and_cut_the_variance_they_are_made_for():
+    """Rotated pairs on the derivative of a lobe's rotation (odd about its axis; detached, as Zhang
+    et al. 2021) and reflected pairs on an exponent derivative (even about the axis, monotone in
+    u₀), each against independent samples: |z| < 5 against the closed forms
+    (4 checks, FFR 2.3e-6), and the per-evaluation variance below 0.2x (measured 0.03x and 0.01x: the
+    variance estimates would have to be off by 6x). (Turning an exponent derivative's pairs by π
+    gains nothing, ρ = 1: the report's table measures its variance doubling.)"""
+    n, theta = 1 << 14, 0.4
+    rotation = math.cos(theta) * 51 / 52
+    exponent = 2 / (5 + 2 + 1) ** 2
+    make = lambda p: (lambda w: w[2] ** 2, js.PhongLobe(p))  # noqa: E731
+    results = {}
+    for pairs in (None, "rotate"):
+        results["rotation", pairs] = js.estimate_grad(_rotated_lobe, theta, next_key(), n, mode="detached",
+                                                      antithetic=pairs)
+    for pairs in (None, "reflect"):
+        results["exponent", pairs] = js.expectation_grad(make, 5.0, next_key(), n, antithetic=pairs)
+    for (case, pairs), est in results.items():
+        assert est.n == n and np.isclose(float(est.variance), float(est.stderr) ** 2 * n, rtol=1e-5)
+        exact = rotation if case == "rotation" else exponent
+        assert abs(float(est.mean) - exact) < 5 * float(est.stderr), (case, pairs, est.mean, exact)
+    variance = {key: float(est.variance) for key, est in results.items()}
+    assert variance["rotation", "rotate"] < 0.2 * variance["rotation", None]
+    assert variance["exponent", "reflect"] < 0.2 * variance["exponent", None]
+
+
+def test_antithetic_options_are_checked():
+    make = lambda p: (lambda x: jnp.sum(x) * p, js.UniformBox(jnp.zeros(2), jnp.ones(2)))  # noqa: E731
+    with pytest.raises(ValueError, match="no periodic coordinate"):
+        js.estimate_grad(make, 1.0, next_key(), 1024, antithetic="rotate")
+    with pytest.raises(ValueError, match="'antithetic'"):
+        js.estimate_grad(make, 1.0, next_key(), 1024, antithetic="mirror")
+    with pytest.raises(ValueError, match="must be even"):
+        js.estimate_grad(make, 1.0, next_key(), 1025, antithetic="reflect")
+    with pytest.raises(ValueError, match="leave_one_out"):
+        js.expectation_grad(make, 1.0, next_key(), 1024, gradient="score", baseline="leave_one_out",
+                            antithetic="reflect")
