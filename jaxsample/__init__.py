@@ -22,9 +22,9 @@ from .estimators import (Estimate, estimate, estimate_antithetic, estimate_contr
                          estimate_guaranteed, estimate_mis, estimate_ratio, estimate_resampled, estimate_until,
                          expectation, expectation_grad)
 from .samplers import (CosineHemisphere, Discrete, Exponential, Mixture, Oriented, PhongLobe, PiecewiseConstant1D,
-                       PiecewiseConstant2D, Power, Rejection, Sampler, Transformed, TruncatedExponential, UniformBox,
-                       UniformCone, UniformDisk, UniformHemisphere, UniformSphere, UniformTriangle, VonMisesFisher,
-                       parameter)
+                       PiecewiseConstant2D, PiecewiseLinear2D, Power, Rejection, Sampler, Transformed,
+                       TruncatedExponential, UniformBox, UniformCone, UniformDisk, UniformHemisphere, UniformSphere,
+                       UniformTriangle, VonMisesFisher, parameter)
 from .samplers import Bilinear, HenyeyGreenstein, Linear, Normal, Normal2D, SmoothStep, Tent, TrimmedLogistic
 from .samplers import CosineSphericalTriangle, SphericalRectangle, SphericalTriangle
 from .samplers import GGX, Beckmann, MicrofacetReflection, VisibleNormals
@@ -56,7 +56,7 @@ __all__ = [
     "VonMisesFisher", "Oriented",
     # planar, one-dimensional, discrete and tabulated samplers
     "UniformDisk", "UniformTriangle", "UniformBox", "Exponential", "TruncatedExponential", "Power",
-    "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D",
+    "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "PiecewiseLinear2D",
     # phase function, Gaussians, low-order polynomial and other smooth 1-D densities
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     # microfacet normal distributions and the lobes built on them

@@ -24,6 +24,7 @@ from .normal import Normal, Normal2D
 from .oriented import Oriented
 from .phong import PhongLobe
 from .piecewise import PiecewiseConstant1D, PiecewiseConstant2D
+from .piecewise_linear import PiecewiseLinear2D
 from .polynomial import Bilinear, Linear, Tent
 from .power import Power
 from .ramps import SmoothStep, TrimmedLogistic
@@ -39,7 +40,8 @@ __all__ = [
     "Sampler", "Pytree", "parameter", "static_field", "point_method", "UniformSphere", "UniformHemisphere",
     "CosineHemisphere", "PhongLobe", "UniformCone",
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
-    "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "Rejection",
+    "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "PiecewiseLinear2D",
+    "Rejection",
     "RejectionInfo", "Transformed", "Mixture",
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     "GGX", "Beckmann", "MicrofacetDistribution", "VisibleNormals", "MicrofacetReflection",

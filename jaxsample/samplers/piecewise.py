@@ -21,6 +21,14 @@ from .discrete import (as_array, check_weights, normalized_tables, select_rows_w
 from .domain import Box, Interval
 
 
+def _mean(values, dtype):
+    """The mean of the values, in float64 NumPy when they are concrete."""
+    concrete = concrete_value(values)
+    if concrete is not None:
+        return jnp.asarray(np.mean(np.asarray(concrete, np.float64)), dtype)
+    return jnp.mean(jnp.asarray(values, dtype))
+
+
 def _bin_index(x, n):
     """Bin of x in [0, 1] for n equal bins, as the warp places points: floor(x n), last bin closed."""
     return jnp.clip(jnp.floor(x * n), 0, n - 1).astype(jnp.int32)
@@ -62,6 +70,7 @@ class PiecewiseConstant1D(Sampler):
 
     pmf: jax.Array = parameter(rank=1, doc="the bins' probabilities")
     cdf: jax.Array = parameter(rank=1)
+    mean_value: jax.Array = parameter(doc="the mean of the values, their piecewise-constant function's integral")
     uniform_dims: ClassVar[int] = 1
     event_shape: ClassVar = ()
     measure: ClassVar = "length"
@@ -76,6 +85,7 @@ class PiecewiseConstant1D(Sampler):
         values = as_array(values)
         check_weights("PiecewiseConstant1D", "values", values)
         self.pmf, self.cdf = normalized_tables(values)
+        self.mean_value = _mean(values, self.pmf.dtype)
 
     def __repr__(self):
         return f"PiecewiseConstant1D(size={self.size})"
@@ -83,6 +93,10 @@ class PiecewiseConstant1D(Sampler):
     @property
     def size(self) -> int:
         return self.pmf.shape[-1]
+
+    def integral(self) -> jax.Array:
+        """∫₀¹ of the piecewise-constant function of the values (their mean): the density's normalization."""
+        return self.mean_value
 
     @point_method
     def warp(self, u):
@@ -121,6 +135,7 @@ class PiecewiseConstant2D(Sampler):
     marginal_cdf: jax.Array = parameter(rank=1)
     conditional_pmf: jax.Array = parameter(rank=2, doc="each row's columns' probabilities")
     conditional_cdf: jax.Array = parameter(rank=2)
+    mean_value: jax.Array = parameter(doc="the mean of the values, their piecewise-constant function's integral")
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (2,)
     measure: ClassVar = "area"
@@ -138,6 +153,12 @@ class PiecewiseConstant2D(Sampler):
         self.marginal_pmf, self.marginal_cdf = normalized_tables(
             v.sum(axis=-1) if v is not None else jnp.sum(jnp.asarray(values), axis=-1))
         self.conditional_pmf, self.conditional_cdf = normalized_tables(values)
+        self.mean_value = _mean(values, self.marginal_pmf.dtype)
+
+    def integral(self) -> jax.Array:
+        """∫∫ over [0, 1]² of the piecewise-constant function of the values (their mean): the density's
+        normalization."""
+        return self.mean_value
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -201,6 +201,10 @@ def piecewise_2d(values):
     return js.PiecewiseConstant2D(values)
 
 
+def piecewise_linear_2d(values):
+    return js.PiecewiseLinear2D(values)
+
+
 def mixture_of_exponentials(weights, rate):
     return js.Mixture((js.Exponential(1.0), js.Exponential(rate)), weights)
 
@@ -342,6 +346,9 @@ TABLE_2D[3] = 0.0
 TABLE_2D[:, 7] = 0.0
 HUGE_TABLE = _rng.random(10 ** 6)
 HUGE_TABLE[_rng.random(10 ** 6) < 0.3] = 0.0
+GRID_WITH_ZEROS = np.random.default_rng(13).random((6, 8))
+GRID_WITH_ZEROS[2, :] = 0.0
+GRID_WITH_ZEROS[:, 5] = 0.0
 
 _rng = np.random.default_rng(9)
 WEIGHTS = np.array([0.0, 3.0, 1.0, 0.0, 0.5, 2.0, 0.0, 1.5])
@@ -503,6 +510,15 @@ ENTRIES = [
           (_C((TABLE_2D,)), _C((HUGE_TABLE.reshape(1000, 1000),), chi2=False, inverse=False, gradients=False)),
           np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
           inverse=dataclasses.replace(_LINE_INVERSE, jacobian32=None)),
+    # A random grid, the smallest one (one cell), and one with a zero row and a zero column of vertices
+    # (a density that falls to 0 along them, linearly).
+    Entry("PiecewiseLinear2D", piecewise_linear_2d,
+          (_C((TABLE_2D[:9, :13],)), _C((np.array([[1.0, 4.0], [0.5, 2.0]]),)),
+           _C((GRID_WITH_ZEROS,), gradients=False)),
+          np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
+          # Where the density falls to 0 its float32 Jacobian is resolved to 1e-2 only: checked in float64.
+          inverse=dataclasses.replace(_PLANAR_INVERSE, jacobian32=None, jacobian64=1e-9), pdf_rtol=1e-4,
+          positive_at_edges=False),
     # ---- finite sets (counting) ----
     Entry("Discrete-cdf", discrete, (_C((WEIGHTS,)), _C((np.array([2.5]),), gradients=False),
                                      _C((np.ones(1),), gradients=False),
