@@ -1167,6 +1167,16 @@ MUTATIONS = [
       "return jnp.asarray(np.sum(np.asarray(concrete, np.float64)), dtype)",
       ("tests/samplers/test_tables.py::test_every_table_knows_its_integral",),
       "a piecewise-constant table's integral as the sum of its values, forgetting the bins' width"),
+    # ---- Hammersley points ----
+    M("hammersley-grid-unshifted", "jaxsample/uniforms/hammersley.py",
+      "                        + bits_to_unit(layout.take(shift[0]), jnp.float64))",
+      "                        + 0.0 * bits_to_unit(layout.take(shift[0]), jnp.float64))",
+      ("tests/uniforms/test_point_sets.py::test_every_point_is_uniform_over_keys[hammersley]",),
+      "the first coordinate's grid not shifted: point 0 of every replicate sits at 0 for every key"),
+    M("hammersley-scramble-ignored", "jaxsample/uniforms/hammersley.py", "Halton(self.replicates, self.scramble).lanes",
+      "Halton(self.replicates).lanes",
+      ("tests/uniforms/test_point_sets.py::test_hammersley_is_a_shifted_grid_beside_the_halton_coordinates",),
+      "Owen-scrambled Hammersley draws its Halton coordinates with the permutation scramble"),
     # ---- antithetic gradients ----
     M("antithetic-rotate-without-turning", "jaxsample/estimators/gradient_errors.py",
       "return u.at[:, list(sampler.periodic_dims)].set(jnp.where(shifted >= 1.0, shifted - 1.0, shifted))",

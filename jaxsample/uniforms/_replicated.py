@@ -25,6 +25,7 @@ from .philox import _alignment, _u32, philox4x32
 STREAM_LATTICE = 0x4C415454   # "LATT": the lattice shifts
 STREAM_HALTON = 0x48414C54    # "HALT": the digit permutations and tails
 STREAM_LHS = 0x4C485321       # "LHS!": the stratum permutations and the jitter
+STREAM_HAMMERSLEY = 0x48414D4D  # "HAMM": the first coordinate's shifts
 
 
 def _mix32(x):
@@ -110,7 +111,7 @@ def wide_mulhi(x: jax.Array, multiplier) -> jax.Array:
 
 
 __all__ = ["Layout", "replicate_words", "check_dims", "check_flag", "stack_lanes", "wide_mulhi",
-           "STREAM_LATTICE", "STREAM_HALTON", "STREAM_LHS"]
+           "STREAM_LATTICE", "STREAM_HALTON", "STREAM_LHS", "STREAM_HAMMERSLEY"]
 
 
 def store_all_but(lanes: list, keep: int, token) -> list:

@@ -541,8 +541,8 @@ register_source(Sobol)
 
 
 def as_source(uniforms: SourceLike) -> Source:
-    """A registered name ("random" | "stratified" | "sobol" | "lattice" | "halton" | "lhs": the source
-    with default settings) or a `Source` instance."""
+    """A registered name ("random" | "stratified" | "sobol" | "lattice" | "halton" | "lhs" |
+    "hammersley": the source with default settings) or a `Source` instance."""
     if isinstance(uniforms, Source):
         return uniforms
     if isinstance(uniforms, str) and uniforms in _BY_NAME:
