@@ -16,6 +16,7 @@ from .disk import UniformDisk
 from .exponential import Exponential, TruncatedExponential
 from .frame import Frame
 from .henyey_greenstein import HenyeyGreenstein
+from .hierarchical import Hierarchical2D
 from .mixture import Mixture
 from .microfacet import MicrofacetDistribution, MicrofacetReflection, VisibleNormals
 from .microfacet_beckmann import Beckmann
@@ -41,7 +42,7 @@ __all__ = [
     "CosineHemisphere", "PhongLobe", "UniformCone",
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "PiecewiseLinear2D",
-    "Rejection",
+    "Hierarchical2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     "GGX", "Beckmann", "MicrofacetDistribution", "VisibleNormals", "MicrofacetReflection",

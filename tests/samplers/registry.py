@@ -205,6 +205,10 @@ def piecewise_linear_2d(values):
     return js.PiecewiseLinear2D(values)
 
 
+def hierarchical_2d(values):
+    return js.Hierarchical2D(values)
+
+
 def mixture_of_exponentials(weights, rate):
     return js.Mixture((js.Exponential(1.0), js.Exponential(rate)), weights)
 
@@ -508,6 +512,11 @@ ENTRIES = [
           inverse=dataclasses.replace(_LINE_INVERSE, jacobian32=None)),  # smooth within bins only
     Entry("PiecewiseConstant2D", piecewise_2d,
           (_C((TABLE_2D,)), _C((HUGE_TABLE.reshape(1000, 1000),), chi2=False, inverse=False, gradients=False)),
+          np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
+          inverse=dataclasses.replace(_LINE_INVERSE, jacobian32=None)),
+    # A 16 x 32 table with a zero row and column, and a single row (only x splits).
+    Entry("Hierarchical2D", hierarchical_2d,
+          (_C((TABLE_2D[:16, :32],)), _C((np.array([[1.0, 2.0, 0.0, 3.0]]),), gradients=False)),
           np.array([[0.3, 0.6], [0.0, 0.0], [1.0, 1.0], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
           inverse=dataclasses.replace(_LINE_INVERSE, jacobian32=None)),
     # A random grid, the smallest one (one cell), and one with a zero row and a zero column of vertices
