@@ -21,7 +21,8 @@ jaxsample.report.<module>`; in a checkout also as `python benchmarks/<module>.py
      slope, ns/point and time to a target error side by side (`point_set_dims.py`);
   6. gradients: variance and cost per gradient estimator (`bench_gradients.py`), gradients with
      their standard errors and estimates to a requested accuracy (`gradient_error_bars.py`);
-  7. hard cases: non-finite values/gradients and float32 error at extreme parameters (`hard_cases.py`);
+  7. resampled importance sampling against its proposal alone (`resampling.py`); hard cases:
+     non-finite values/gradients and float32 error at extreme parameters (`hard_cases.py`);
   8. the scene: the inverse problem solved by gradient descent (`inverse_problem.py`), and shade's
      gradients per strategy and mode against the reference, with the boundary term's cost
      (`shade_gradients.py`).
@@ -48,7 +49,7 @@ TINY_SAMPLERS = ("CosineHemisphere(malley)", "PhongLobe(1e7)", "UniformCone(1e-8
                  "Exponential(2)", "Discrete(1,2,3,4)", "Mixture(cosine, Phong 20)")
 # The sections --tiny leaves out (the slowest); each says so where it would be.
 TINY_SKIPPED = ("baselines", "the curse of dimensionality", "point sets against dimension", "gradient estimators",
-                "gradients with error bars", "the scene")
+                "gradients with error bars", "resampled importance sampling", "the scene")
 NO_VERDICTS = "no verdicts at smoke-test size"
 
 
@@ -469,6 +470,21 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
                "samples, variance per evaluation at equal n; then `estimate_until` at requested relative standard "
                "errors.\n",
                error_bars.markdown(bar_rows, accuracy_rows, antithetic_rows)]
+
+    section("resampled importance sampling")
+    if tiny:
+        md += ["## Resampled importance sampling\n",
+               "Skipped in --tiny mode (run `python -m jaxsample.report.resampling`).\n"]
+    else:
+        resampling = _piece("resampling")
+        ris_rows = resampling.resampling_table(quick=quick, progress=progress)
+        _write_csv(out / "resampling.csv", ris_rows)
+        md += ["## Resampled importance sampling against its proposal alone\n",
+               "`estimate_resampled` with M candidates per output beside plain `estimate` with the proposal and with "
+               "the target's own sampler: variance per output, time per output (interleaved medians) and their "
+               "product relative to the proposal's. Each candidate costs a proposal sample and a target evaluation, "
+               "so RIS gains where f costs far more than the target.\n",
+               resampling.markdown(ris_rows)]
 
     section("hard cases")
     hard = _piece("hard_cases")
