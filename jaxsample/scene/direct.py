@@ -87,6 +87,11 @@ def mis_weight(own_pdf, other_pdf, exponent: float):
     return heuristic_weights([own_pdf, other_pdf], exponent)[0]
 
 
+def _dims(light) -> int:
+    """The uniforms a light's `sample` reads: 2 (a direction), or its `uniform_dims`."""
+    return getattr(light, "uniform_dims", 2)
+
+
 class _Shading:
     """The per-direction pieces of the estimator at one shading point."""
 
@@ -141,13 +146,13 @@ class _Shading:
         """(local ω, L_i, p_light, p_brdf) for light samples from u (..., 2) or (..., 3)."""
         lights = self.lights
         if len(lights) == 1:
-            wi, radiance, pdf = lights[0].sample(self.point, u)
+            wi, radiance, pdf = lights[0].sample(self.point, u[..., :_dims(lights[0])])
             wi, pdf = self._freeze(wi, pdf)
             radiance = self.colour(radiance, pdf.ndim)
         else:
             count = len(lights)
             chosen = jnp.clip(jnp.floor(u[..., 0] * count), 0, count - 1).astype(jnp.int32)
-            draws = [light.sample(self.point, u[..., 1:]) for light in lights]
+            draws = [light.sample(self.point, u[..., 1:1 + _dims(light)]) for light in lights]
             wi = sum(jnp.where((chosen == k)[..., None], d[0], 0.0) for k, d in enumerate(draws))
             (wi,) = self._freeze(wi)
             radiance, pdf = 0.0, 0.0
@@ -165,7 +170,9 @@ class _Shading:
 
     @property
     def light_dims(self):
-        return 2 if len(self.lights) == 1 else 3
+        """The uniforms of one light sample: the light's own (2, or `uniform_dims` for a batch of
+        lights), plus one to choose among several."""
+        return (0 if len(self.lights) == 1 else 1) + max(_dims(light) for light in self.lights)
 
     # The silhouettes' boundary term (see the module docstring and `estimators/boundary.py`).
     def silhouettes(self):
@@ -255,10 +262,13 @@ def _refuse(strategy, mode, lights, tangents):
     for k in unknown:
         if getattr(lights[k], "fixed_edges", False) or _is_zero(lights_t[k]):
             continue
-        if not (attached and strategy == "light" and len(lights) == 1):
+        follows = getattr(lights[k], "samples_follow_edges", True)
+        if not (attached and strategy == "light" and len(lights) == 1 and follows):
+            alone = ("; its gradient is unbiased only with strategy='light', mode='attached' and that light alone"
+                     if follows else "; its samples cross one another's edges (hold the lights fixed, or use "
+                     "mode='detached' for parameters that move no edge)")
             raise ValueError(f"shade: light {k} ({type(lights[k]).__name__}) has no 'silhouette', so the boundary "
-                             "term of its moving edges is unknown; its gradient is unbiased only with "
-                             "strategy='light', mode='attached' and that light alone")
+                             f"term of its moving edges is unknown{alone}")
     brdf_moves = not all(_is_zero(t) for t in (normal_t, wo_t, brdf_t))
     if attached and strategy in ("brdf", "mis") and brdf_moves:
         names = ", ".join(type(lights[k]).__name__ for k in unknown)
