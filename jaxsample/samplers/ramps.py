@@ -40,6 +40,26 @@ def _interval_valid(declared, low, high):
     return valid if declared is None else declared & valid
 
 
+class _OnInterval(Sampler):
+    """What the two densities share: a finite interval [low, high] with low < high, checked when
+    concrete and poisoning the outputs when traced, and the log-density from the density."""
+
+    uniform_dims: ClassVar[int] = 1
+    event_shape: ClassVar = ()
+    measure: ClassVar = "length"
+
+    def __post_init__(self):
+        _check_interval(type(self).__name__, self.low, self.high)
+
+    def _parameters_valid(self):
+        return _interval_valid(super()._parameters_valid(), self.low, self.high)
+
+    @point_method
+    def log_pdf(self, x):
+        p = self.pdf(x)
+        return jnp.where(p > 0, jnp.log(jnp.where(p > 0, p, 1.0)), -jnp.inf)
+
+
 @jax.custom_jvp
 def _smooth_step_t(u):
     """(t, 1 − t) for t in [0, 1] with C(t) = 2t³ − t⁴ = u, the smooth step's CDF on [0, 1]. Below
@@ -67,7 +87,7 @@ def _smooth_step_t_jvp(primals, tangents):
     return (t, s), (dt, -dt)
 
 
-class SmoothStep(Sampler):
+class SmoothStep(_OnInterval):
     """p(x) = 2/(b − a) · S(t), S(t) = 3t² − 2t³, t = (x − a)/(b − a), on [a, b] (length measure);
     0 outside; a = `low`, b = `high` (PBRT-v4 `SmoothStepPDF`; ∫₀¹ S = 1/2).
 
@@ -79,15 +99,6 @@ class SmoothStep(Sampler):
 
     low: jax.Array = parameter(doc="a, the start of the rise, finite")
     high: jax.Array = parameter(doc="b, where the step reaches 1, finite, above a")
-    uniform_dims: ClassVar[int] = 1
-    event_shape: ClassVar = ()
-    measure: ClassVar = "length"
-
-    def __post_init__(self):
-        _check_interval("SmoothStep", self.low, self.high)
-
-    def _parameters_valid(self):
-        return _interval_valid(super()._parameters_valid(), self.low, self.high)
 
     def _density(self, t):
         return 2.0 * t * t * (3.0 - 2.0 * t) / (self.high - self.low)
@@ -113,11 +124,6 @@ class SmoothStep(Sampler):
         return jnp.where(inside, self._density(t), 0.0).astype(jnp.result_type(x, float))
 
     @point_method
-    def log_pdf(self, x):
-        p = self.pdf(x)
-        return jnp.where(p > 0, jnp.log(jnp.where(p > 0, p, 1.0)), -jnp.inf)
-
-    @point_method
     def inverse(self, x):
         t = jnp.clip((x - self.low) / (self.high - self.low), 0.0, 1.0)
         return (t * t * t * (2.0 - t))[..., None]
@@ -135,7 +141,7 @@ def _logistic_density(x, s):
     return e / (s * (1.0 + e) ** 2)
 
 
-class TrimmedLogistic(Sampler):
+class TrimmedLogistic(_OnInterval):
     """The logistic density of scale s restricted to [a, b] (length measure), 0 outside:
 
         p(x) = e^{−|x|/s} / (s (1 + e^{−|x|/s})²) / (F(b) − F(a)),  F(x) = 1/(1 + e^{−x/s}),
@@ -152,15 +158,6 @@ class TrimmedLogistic(Sampler):
     scale: jax.Array = parameter(0.0, np.inf, low_open=True, high_open=True, doc="s")
     low: jax.Array = parameter(doc="a, finite")
     high: jax.Array = parameter(doc="b, finite, above a")
-    uniform_dims: ClassVar[int] = 1
-    event_shape: ClassVar = ()
-    measure: ClassVar = "length"
-
-    def __post_init__(self):
-        _check_interval("TrimmedLogistic", self.low, self.high)
-
-    def _parameters_valid(self):
-        return _interval_valid(super()._parameters_valid(), self.low, self.high)
 
     def _cdfs(self):
         """(F(a), G(a), m)."""
@@ -185,11 +182,6 @@ class TrimmedLogistic(Sampler):
         inside = (x >= self.low) & (x <= self.high)
         p = _logistic_density(x, self.scale) / self._cdfs()[2]
         return jnp.where(inside, p, 0.0).astype(jnp.result_type(x, float))
-
-    @point_method
-    def log_pdf(self, x):
-        p = self.pdf(x)
-        return jnp.where(p > 0, jnp.log(jnp.where(p > 0, p, 1.0)), -jnp.inf)
 
     @point_method
     def inverse(self, x):
