@@ -135,10 +135,10 @@ class SmoothStep(_OnInterval):
         return Interval(float(low), float(high))
 
 
-def _logistic_density(x, s):
-    """e^{−|x|/s} / (s (1 + e^{−|x|/s})²), the logistic density, in a form that never overflows."""
-    e = jnp.exp(-jnp.abs(x) / s)
-    return e / (s * (1.0 + e) ** 2)
+def _log_cdf(z):
+    """log F(z) = −softplus(−z), F the standard logistic CDF: finite for every finite z (log of the
+    sigmoid underflows to −inf below z ≈ −88 in float32)."""
+    return -jax.nn.softplus(-z)
 
 
 class TrimmedLogistic(_OnInterval):
@@ -149,22 +149,32 @@ class TrimmedLogistic(_OnInterval):
     s = `scale`, a = `low`, b = `high` (PBRT-v4 `TrimmedLogisticPDF`).
 
     Inversion (PBRT-v4 `SampleTrimmedLogistic`, rewritten for the tails): x = s · logit(v) with
-    v = F(a) + u (F(b) − F(a)), as x = s (log v − log(1 − v)) where v and 1 − v = G(a) − u m
-    (G = 1 − F, computed as F of −x) are each formed without cancelling; the mass m is G(a) − G(b)
-    when the interval lies right of 0 and F(b) − F(a) otherwise, so that an interval deep in a tail
-    keeps its relative precision. Inverse: u = (F(x) − F(a))/m, in the same form.
+    v = F(a) + u (F(b) − F(a)), computed in logarithms relative to the end nearer 0 so that an
+    interval any number of scales into a tail neither underflows nor cancels. With z = x/s,
+    ℓ = log F = −softplus(−z) and r = F(a)/F(b) = e^{ℓ(a) − ℓ(b)}: log v = ℓ(b) + log(r + u(1 − r)),
+    z = log v − log1p(−v), the mass m = F(b)(1 − r) with 1 − r = −expm1(ℓ(a) − ℓ(b)), and the
+    density e^{ℓ(z) + ℓ(−z) − log m}/s (the logistic density is F(z)(1 − F(z))/s). An interval whose
+    centre lies right of 0 is drawn as the mirror image of (−b, −a) with 1 − u. Inverse:
+    u = r expm1(ℓ(z) − ℓ(a)) / (1 − r), mirrored likewise.
     """
 
     scale: jax.Array = parameter(0.0, np.inf, low_open=True, high_open=True, doc="s")
     low: jax.Array = parameter(doc="a, finite")
     high: jax.Array = parameter(doc="b, finite, above a")
 
-    def _cdfs(self):
-        """(F(a), G(a), m)."""
-        s = self.scale
-        f_a, g_a = jax.nn.sigmoid(self.low / s), jax.nn.sigmoid(-self.low / s)
-        f_b, g_b = jax.nn.sigmoid(self.high / s), jax.nn.sigmoid(-self.high / s)
-        return f_a, g_a, jnp.where(self.low >= 0, g_a - g_b, f_b - f_a)
+    def _ends(self):
+        """(mirrored, z_a, z_b): the interval in units of s, mirrored (−b, −a) when its centre is
+        right of 0, so that the formulas work from the end nearer 0 (`_left_*`)."""
+        z_a, z_b = self.low / self.scale, self.high / self.scale
+        mirrored = z_a + z_b > 0
+        return mirrored, jnp.where(mirrored, -z_b, z_a), jnp.where(mirrored, -z_a, z_b)
+
+    def _log_mass(self, z_a, z_b):
+        return _log_cdf(z_b) + jnp.log(-jnp.expm1(_log_cdf(z_a) - _log_cdf(z_b)))
+
+    def _log_density(self, x, log_mass):
+        z = x / self.scale
+        return _log_cdf(z) + _log_cdf(-z) - log_mass - jnp.log(self.scale)
 
     @point_method
     def warp(self, u):
@@ -172,24 +182,30 @@ class TrimmedLogistic(_OnInterval):
 
     @point_method
     def warp_with_pdf(self, u):
-        f_a, g_a, mass = self._cdfs()
-        v, one_minus_v = f_a + u[..., 0] * mass, g_a - u[..., 0] * mass
-        x = jnp.clip(self.scale * (jnp.log(v) - jnp.log(one_minus_v)), self.low, self.high)
-        return x, _logistic_density(x, self.scale) / mass
+        mirrored, z_a, z_b = self._ends()
+        u0 = jnp.where(mirrored, 1.0 - u[..., 0], u[..., 0])
+        l_b = _log_cdf(z_b)
+        ratio = jnp.exp(_log_cdf(z_a) - l_b)
+        log_v = l_b + jnp.log(ratio + u0 * (1.0 - ratio))
+        z = log_v - jnp.log1p(-jnp.exp(log_v))
+        x = jnp.clip(self.scale * jnp.where(mirrored, -z, z), self.low, self.high)
+        return x, jnp.exp(self._log_density(x, self._log_mass(z_a, z_b)))
 
     @point_method
     def pdf(self, x):
         inside = (x >= self.low) & (x <= self.high)
-        p = _logistic_density(x, self.scale) / self._cdfs()[2]
+        _, z_a, z_b = self._ends()
+        p = jnp.exp(self._log_density(x, self._log_mass(z_a, z_b)))
         return jnp.where(inside, p, 0.0).astype(jnp.result_type(x, float))
 
     @point_method
     def inverse(self, x):
-        f_a, g_a, mass = self._cdfs()
-        x = jnp.clip(x, self.low, self.high)
-        right = self.low >= 0
-        above = jnp.where(right, g_a - jax.nn.sigmoid(-x / self.scale), jax.nn.sigmoid(x / self.scale) - f_a)
-        return jnp.clip(above / mass, 0.0, 1.0)[..., None]
+        mirrored, z_a, z_b = self._ends()
+        z = jnp.clip(x, self.low, self.high) / self.scale
+        z = jnp.where(mirrored, -z, z)
+        l_a, l_b = _log_cdf(z_a), _log_cdf(z_b)
+        u = jnp.exp(l_a - l_b) * jnp.expm1(_log_cdf(z) - l_a) / -jnp.expm1(l_a - l_b)
+        return jnp.clip(jnp.where(mirrored, 1.0 - u, u), 0.0, 1.0)[..., None]
 
     def domain(self):
         low, high = concrete_value(self.low), concrete_value(self.high)
