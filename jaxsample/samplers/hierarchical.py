@@ -23,7 +23,7 @@ from .._core.numerics import one_minus_epsilon
 from .._core.params import concrete_value
 from .base import Sampler, point_method
 from .discrete import as_array, check_weights
-from .domain import Box
+from .piecewise import cell_grid
 
 
 def _power_of_two(n: int) -> bool:
@@ -164,7 +164,4 @@ class Hierarchical2D(Sampler):
         return jnp.clip(jnp.stack([u0, u1], axis=-1), 0.0, 1.0)
 
     def domain(self):
-        rows, columns = self.shape
-        return Box.from_bounds([0.0, 0.0], [1.0, 1.0],
-                               breaks=[np.linspace(0.0, 1.0, columns + 1), np.linspace(0.0, 1.0, rows + 1)],
-                               graded=False, order=1)
+        return cell_grid(*self.shape)

@@ -21,6 +21,14 @@ from .discrete import (as_array, check_weights, normalized_tables, select_rows_w
 from .domain import Box, Interval
 
 
+def cell_grid(rows: int, columns: int) -> Box:
+    """[0, 1]² cut into rows x columns equal cells, integrated by the midpoint rule per cell: exact for
+    a density constant on each cell (the piecewise-constant tables)."""
+    return Box.from_bounds([0.0, 0.0], [1.0, 1.0],
+                           breaks=[np.linspace(0.0, 1.0, columns + 1), np.linspace(0.0, 1.0, rows + 1)],
+                           graded=False, order=1)
+
+
 def _mean(values, dtype):
     """The mean of the values, in float64 NumPy when they are concrete."""
     concrete = concrete_value(values)
@@ -194,7 +202,4 @@ class PiecewiseConstant2D(Sampler):
         return jnp.clip(jnp.stack([u0, u1], axis=-1), 0.0, 1.0)
 
     def domain(self):
-        rows, columns = self.shape
-        return Box.from_bounds([0.0, 0.0], [1.0, 1.0],
-                               breaks=[np.linspace(0.0, 1.0, columns + 1), np.linspace(0.0, 1.0, rows + 1)],
-                               graded=False, order=1)
+        return cell_grid(*self.shape)
