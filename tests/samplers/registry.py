@@ -209,6 +209,10 @@ def hierarchical_2d(values):
     return js.Hierarchical2D(values)
 
 
+def catmull_rom_1d(nodes, values):
+    return js.CatmullRom1D(nodes, values)
+
+
 def mixture_of_exponentials(weights, rate):
     return js.Mixture((js.Exponential(1.0), js.Exponential(rate)), weights)
 
@@ -528,6 +532,13 @@ ENTRIES = [
           # Where the density falls to 0 its float32 Jacobian is resolved to 1e-2 only: checked in float64.
           inverse=dataclasses.replace(_PLANAR_INVERSE, jacobian32=None, jacobian64=1e-9), pdf_rtol=1e-4,
           positive_at_edges=False),
+    # Uneven nodes with a peak and a dip, the two-node spline (a linear density), and a spline that falls
+    # to 0 at its last node (the density is 0 there).
+    Entry("CatmullRom1D", catmull_rom_1d,
+          (_C(([0.0, 0.3, 0.5, 1.2, 2.0, 2.1, 3.0], [1.0, 2.0, 0.8, 1.5, 1.5, 1.2, 0.3])),
+           _C(([-1.0, 1.0], [0.5, 2.0])), _C(([0.0, 1.0, 2.0, 4.0], [2.0, 1.0, 0.5, 0.0]), chi2=False)),
+          np.array([0.0, 0.25, 1.2, 3.0, -1.0, 3.5]), 1_000_000, inverse=_LINE_INVERSE,
+          pdf_rtol=1e-4, positive_at_edges=False),
     # ---- finite sets (counting) ----
     Entry("Discrete-cdf", discrete, (_C((WEIGHTS,)), _C((np.array([2.5]),), gradients=False),
                                      _C((np.ones(1),), gradients=False),
