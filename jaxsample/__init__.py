@@ -25,8 +25,8 @@ from .samplers import (CosineHemisphere, Discrete, Exponential, Mixture, Oriente
                        PiecewiseConstant2D, PiecewiseLinear2D, Power, Rejection, Sampler, Transformed,
                        TruncatedExponential, UniformBox, UniformCone, UniformDisk, UniformHemisphere, UniformSphere,
                        UniformTriangle, VonMisesFisher, parameter)
-from .samplers import (Bilinear, CatmullRom1D, HenyeyGreenstein, Hierarchical2D, Linear, Normal, Normal2D, SmoothStep,
-                       Tent, TrimmedLogistic)
+from .samplers import (Bilinear, CatmullRom1D, CatmullRom2D, HenyeyGreenstein, Hierarchical2D, Linear, Normal,
+                       Normal2D, SmoothStep, Tent, TrimmedLogistic)
 from .samplers import CosineSphericalTriangle, SphericalRectangle, SphericalTriangle
 from .samplers import GGX, Beckmann, MicrofacetReflection, VisibleNormals
 
@@ -58,7 +58,7 @@ __all__ = [
     # planar, one-dimensional, discrete and tabulated samplers
     "UniformDisk", "UniformTriangle", "UniformBox", "Exponential", "TruncatedExponential", "Power",
     "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "PiecewiseLinear2D", "Hierarchical2D",
-    "CatmullRom1D",
+    "CatmullRom1D", "CatmullRom2D",
     # phase function, Gaussians, low-order polynomial and other smooth 1-D densities
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     # microfacet normal distributions and the lobes built on them

@@ -8,7 +8,7 @@ docstring states the measure its density is over.
 
 from .._core.pytree import Pytree, parameter, static_field
 from .base import Sampler, point_method
-from .catmull_rom import CatmullRom1D
+from .catmull_rom import CatmullRom1D, CatmullRom2D
 from .box import UniformBox
 from .cone import UniformCone
 from .cosine import CosineHemisphere
@@ -43,7 +43,7 @@ __all__ = [
     "CosineHemisphere", "PhongLobe", "UniformCone",
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "PiecewiseLinear2D",
-    "Hierarchical2D", "CatmullRom1D", "Rejection",
+    "Hierarchical2D", "CatmullRom1D", "CatmullRom2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     "GGX", "Beckmann", "MicrofacetDistribution", "VisibleNormals", "MicrofacetReflection",

@@ -11,7 +11,7 @@ one-sided difference at the first and last node. The spline is C¹ across nodes.
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +19,7 @@ import numpy as np
 
 from .._core.params import concrete_value
 from .._core.pytree import parameter
-from .base import Sampler, point_method
+from .base import Sampler, over_members, point_method
 from .discrete import as_array, search_right, select_with_remainder
 from .domain import Interval
 from .polynomial import linear_quantile
@@ -30,19 +30,10 @@ from .polynomial import linear_quantile
 _NEWTON_STEPS = 8
 
 
-@jax.custom_jvp
-def _derivative_only(y):
-    """0, with the derivative of y: adds a derivative to a value without changing the value."""
-    return jnp.zeros_like(y)
-
-
-@_derivative_only.defjvp
-def _derivative_only_jvp(primals, tangents):
-    return jnp.zeros_like(primals[0]), tangents[0]
-
-
 def _slopes(xp, nodes, values):
-    """m_k, the spline's slope in x at each node: centred differences inside, one-sided at the ends."""
+    """m_k, the spline's slope in x at each node: centred differences inside, one-sided at the ends
+    (values along axis 0, any trailing axes)."""
+    nodes = nodes.reshape(nodes.shape + (1,) * (values.ndim - 1))
     if nodes.shape[-1] == 2:
         slope = (values[1] - values[0]) / (nodes[1] - nodes[0])
         return xp.stack([slope, slope])
@@ -63,44 +54,170 @@ def _segment_integrals(xp, nodes, values, slopes):
     return width * (0.5 * (values[:-1] + values[1:]) + width * (slopes[:-1] - slopes[1:]) / 12.0)
 
 
-def _minimum(nodes, values, slopes):
-    """(min f, where) over the spline, in float64 NumPy: each cubic at its segment's ends and at the
-    zeros of its derivative inside the segment."""
+def _minimum(nodes, values):
+    """(min f, where) of the spline of each row of `values` (..., N), in float64 NumPy: each cubic at
+    its segment's ends and at the zeros of its derivative 3a₃t² + 2a₂t + a₁ inside the segment."""
     width = np.diff(nodes)
-    a0, a1, a2, a3 = _hermite(values[:-1], values[1:], width * slopes[:-1], width * slopes[1:])
-    best, where = float(values.min()), float(nodes[np.argmin(values)])
-    for k in range(width.size):
-        for root in np.roots([3.0 * a3[k], 2.0 * a2[k], a1[k]]) if (a3[k] or a2[k]) else ():
-            if abs(root.imag) < 1e-12 and 0.0 < root.real < 1.0:
-                t = root.real
-                value = a0[k] + t * (a1[k] + t * (a2[k] + t * a3[k]))
-                if value < best:
-                    best, where = float(value), float(nodes[k] + t * width[k])
-    return best, where
+    slopes = np.moveaxis(_slopes(np, nodes, np.moveaxis(values, -1, 0)), 0, -1)
+    a0, a1, a2, a3 = _hermite(values[..., :-1], values[..., 1:], width * slopes[..., :-1], width * slopes[..., 1:])
+    discriminant = a2 * a2 - 3.0 * a3 * a1
+    root = np.sqrt(np.maximum(discriminant, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cubic = (a3 != 0) & (discriminant >= 0)
+        first = np.where(cubic, (-a2 + root) / (3.0 * a3), np.where((a3 == 0) & (a2 != 0), -a1 / (2.0 * a2), -1.0))
+        second = np.where(cubic, (-a2 - root) / (3.0 * a3), -1.0)
+    t = np.stack([np.zeros_like(a0), np.ones_like(a0), first, second], axis=-1)
+    f = a0[..., None] + t * (a1[..., None] + t * (a2[..., None] + t * a3[..., None]))
+    f = np.where((t >= 0) & (t <= 1), f, np.inf).reshape(f.shape[:-2] + (-1,))
+    best = np.argmin(f, axis=-1)
+    segment = best // 4
+    where = nodes[segment] + np.take_along_axis(t.reshape(f.shape), best[..., None], -1)[..., 0] * width[segment]
+    return np.take_along_axis(f, best[..., None], -1)[..., 0], where
 
 
-def _check(nodes, values) -> None:
+def _check_nodes(owner: str, name: str, nodes) -> None:
+    """ValueError unless `nodes` holds at least 2 positions, finite and strictly increasing (when concrete)."""
+    if nodes.ndim != 1 or nodes.size < 2:
+        raise ValueError(f"{owner}: parameter '{name}' must hold at least 2 nodes in one dimension; got shape "
+                         f"{nodes.shape}")
+    concrete = concrete_value(nodes)
+    if concrete is not None:
+        concrete = np.asarray(concrete, np.float64)
+        if not (np.all(np.isfinite(concrete)) and np.all(np.diff(concrete) > 0)):
+            raise ValueError(f"{owner}: parameter '{name}' must be finite and strictly increasing; got {concrete}")
+
+
+def _check(nodes, values, owner: str = "CatmullRom1D", name: str = "values") -> None:
     """ValueError, naming the parameter, for tables no density can be made of (concrete ones only)."""
     if nodes.ndim != 1 or nodes.shape != values.shape:
-        raise ValueError(f"CatmullRom1D: parameters 'nodes' and 'values' must be 1-D of one length; got shapes "
+        raise ValueError(f"{owner}: parameters 'nodes' and '{name}' must be 1-D of one length; got shapes "
                          f"{nodes.shape} and {values.shape}")
-    if nodes.size < 2:
-        raise ValueError(f"CatmullRom1D: parameter 'nodes' must hold at least 2 nodes; got {nodes.size}")
+    _check_nodes(owner, "nodes", nodes)
     nodes_c, values_c = concrete_value(nodes), concrete_value(values)
-    if nodes_c is not None:
-        nodes_c = np.asarray(nodes_c, np.float64)
-        if not (np.all(np.isfinite(nodes_c)) and np.all(np.diff(nodes_c) > 0)):
-            raise ValueError(f"CatmullRom1D: parameter 'nodes' must be finite and strictly increasing; got {nodes_c}")
     if values_c is not None:
         values_c = np.asarray(values_c, np.float64)
         if not (np.all(np.isfinite(values_c)) and np.all(values_c >= 0) and np.any(values_c > 0)):
-            raise ValueError(f"CatmullRom1D: parameter 'values' must be finite, >= 0 and not all 0; got {values_c}")
+            raise ValueError(f"{owner}: parameter '{name}' must be finite, >= 0 and not all 0; got {values_c}")
     if nodes_c is not None and values_c is not None:
-        lowest, where = _minimum(nodes_c, values_c, _slopes(np, nodes_c, values_c))
+        lowest, where = _minimum(np.asarray(nodes_c, np.float64), values_c)
         if lowest < -1e-12 * values_c.max():
-            raise ValueError(f"CatmullRom1D: parameter 'values' makes a spline that dips below 0 (to {lowest:.3g} "
+            raise ValueError(f"{owner}: parameter '{name}' makes a spline that dips below 0 (to {lowest:.3g} "
                              f"at x = {where:.6g}), which is no density; Catmull-Rom overshoots next to a jump "
                              f"to 0: add nodes there or use a piecewise-linear table")
+
+
+def _tables(nodes, values, dtype):
+    """(slopes, cdf) of the spline in `dtype`, computed in float64 NumPy when nodes and values are concrete."""
+    nodes_c, values_c = concrete_value(nodes), concrete_value(values)
+    if nodes_c is not None and values_c is not None:
+        nodes_c, values_c = np.asarray(nodes_c, np.float64), np.asarray(values_c, np.float64)
+        slopes = _slopes(np, nodes_c, values_c)
+        cdf = np.cumsum(_segment_integrals(np, nodes_c, values_c, slopes))
+        return jnp.asarray(slopes, dtype), jnp.asarray(cdf, dtype)
+    nodes, values = jnp.asarray(nodes, dtype), jnp.asarray(values, dtype)
+    slopes = _slopes(jnp, nodes, values)
+    return slopes, jnp.cumsum(_segment_integrals(jnp, nodes, values, slopes))
+
+
+@jax.custom_jvp
+def _derivative_only(y):
+    """0, with the derivative of y: adds a derivative to a value without changing the value."""
+    return jnp.zeros_like(y)
+
+
+@_derivative_only.defjvp
+def _derivative_only_jvp(primals, tangents):
+    return jnp.zeros_like(primals[0]), tangents[0]
+
+
+class _Spline(NamedTuple):
+    """One spline's arrays and the density they make: what `CatmullRom1D` and each row of
+    `CatmullRom2D` sample."""
+
+    nodes: jax.Array
+    values: jax.Array
+    slopes: jax.Array
+    cdf: jax.Array
+
+    def segment(self, k):
+        """(x_k, w, a0, a1, a2, a3) of segment k: its start, width and cubic in t."""
+        start, width = self.nodes[k], self.nodes[k + 1] - self.nodes[k]
+        return (start, width, *_hermite(self.values[k], self.values[k + 1], width * self.slopes[k],
+                                        width * self.slopes[k + 1]))
+
+    def cdf_at(self, k, t):
+        """C(x) for x = x_k + w t in segment k: the mass before the segment plus F_k(t), over ∫f."""
+        _, width, a0, a1, a2, a3 = self.segment(k)
+        before = jnp.where(k > 0, self.cdf[jnp.maximum(k - 1, 0)], 0.0)
+        within = width * t * (a0 + t * (a1 / 2.0 + t * (a2 / 3.0 + t * a3 / 4.0)))
+        return (before + within) / self.cdf[-1]
+
+    def locate(self, x):
+        """(k, t): the segment holding x (the last one for x = x_{N-1}) and the position in it, in [0, 1]."""
+        k = jnp.clip(search_right(self.nodes, x) - 1, 0, self.nodes.shape[-1] - 2)
+        start, width = self.nodes[k], self.nodes[k + 1] - self.nodes[k]
+        return k, jnp.clip((x - start) / width, 0.0, 1.0)
+
+    def solve(self, k, r):
+        """t in [0, 1] with F_k(t) = r F_k(1), by Newton-bisection (no derivatives flow through it).
+
+        An iterate whose residual is within rounding of 0 is final: there the residual's sign is
+        noise, and a bracket or bisection step taken on it would move t away from the root."""
+        _, _, a0, a1, a2, a3 = jax.tree_util.tree_map(jax.lax.stop_gradient, self.segment(k))
+        r = jax.lax.stop_gradient(r)
+        target = r * (a0 + a1 / 2.0 + a2 / 3.0 + a3 / 4.0)
+        noise = 8.0 * jnp.finfo(target.dtype).eps * (jnp.abs(a0) + jnp.abs(a1) + jnp.abs(a2) + jnp.abs(a3))
+        t = linear_quantile(r, a0, a0 + a1 + a2 + a3)[0]
+        low, high = jnp.zeros_like(t), jnp.ones_like(t)
+        done = jnp.zeros(t.shape, bool)
+        for _ in range(_NEWTON_STEPS):
+            excess = t * (a0 + t * (a1 / 2.0 + t * (a2 / 3.0 + t * a3 / 4.0))) - target
+            density = a0 + t * (a1 + t * (a2 + t * a3))
+            done = done | (jnp.abs(excess) <= noise)
+            low, high = jnp.where(excess < 0, t, low), jnp.where(excess < 0, high, t)
+            step = t - excess / jnp.where(density > 0, density, 1.0)
+            step = jnp.where((density > 0) & (step >= low) & (step <= high), step, 0.5 * (low + high))
+            t = jnp.where(done, t, step)
+        return t
+
+    def warp_with_pdf(self, u0):
+        k, r = select_with_remainder(self.cdf / self.cdf[-1], u0)
+        t = self.solve(k, r)
+        start, width, a0, a1, a2, a3 = self.segment(k)
+        # The implicit function C(x) = u: with t held, x = x_k + w t moves with the nodes, and the
+        # correction −(∂C at fixed t − du)/p adds what C(x) = u asks beyond that; its value is 0.
+        residual = _derivative_only(self.cdf_at(k, t) - u0)
+        p = jax.lax.stop_gradient(a0 + t * (a1 + t * (a2 + t * a3))) / jax.lax.stop_gradient(self.cdf[-1])
+        correction = jnp.where(p > 0, residual / jnp.where(p > 0, p, 1.0), 0.0)
+        x = jnp.clip(start + width * t - correction, self.nodes[0], self.nodes[-1])
+        s = (x - start) / width  # t again, carrying x's derivatives into the density
+        density = (a0 + s * (a1 + s * (a2 + s * a3))) / self.cdf[-1]
+        return x, jnp.maximum(density, 0.0)
+
+    def pdf(self, x):
+        k, t = self.locate(x)
+        _, _, a0, a1, a2, a3 = self.segment(k)
+        inside = (x >= self.nodes[0]) & (x <= self.nodes[-1])
+        f = jnp.maximum(a0 + t * (a1 + t * (a2 + t * a3)), 0.0)
+        return jnp.where(inside, f / self.cdf[-1], 0.0).astype(jnp.result_type(x, float))
+
+    def inverse(self, x):
+        k, t = self.locate(x)
+        return jnp.clip(self.cdf_at(k, t), 0.0, 1.0)[..., None]
+
+    def valid(self):
+        """The traced checks: finite nodes in order, finite values >= 0, segments of mass >= 0, some mass."""
+        segments = _segment_integrals(jnp, self.nodes, self.values, self.slopes)
+        return (jnp.all(jnp.isfinite(self.nodes) & jnp.isfinite(self.values) & (self.values >= 0))
+                & jnp.all(self.nodes[1:] > self.nodes[:-1]) & jnp.all(segments >= 0) & (self.cdf[-1] > 0))
+
+
+def _interval(owner, nodes):
+    nodes = concrete_value(nodes)
+    if nodes is None:
+        raise ValueError(f"{owner}.domain: needs concrete 'nodes'")
+    nodes = np.asarray(nodes, np.float64)
+    return Interval(float(nodes[0]), float(nodes[-1]), breaks=nodes[1:-1], graded=False)
 
 
 class CatmullRom1D(Sampler):
@@ -131,106 +248,159 @@ class CatmullRom1D(Sampler):
         nodes, values = as_array(nodes), as_array(values)
         _check(nodes, values)
         dtype = jnp.result_type(nodes, values, float)
-        nodes_c, values_c = concrete_value(nodes), concrete_value(values)
         self.nodes, self.values = jnp.asarray(nodes, dtype), jnp.asarray(values, dtype)
-        if nodes_c is not None and values_c is not None:  # the tables in float64, as the other tables'
-            nodes_c, values_c = np.asarray(nodes_c, np.float64), np.asarray(values_c, np.float64)
-            slopes = _slopes(np, nodes_c, values_c)
-            self.slopes = jnp.asarray(slopes, dtype)
-            self.cdf = jnp.asarray(np.cumsum(_segment_integrals(np, nodes_c, values_c, slopes)), dtype)
-        else:
-            self.slopes = _slopes(jnp, self.nodes, self.values)
-            self.cdf = jnp.cumsum(_segment_integrals(jnp, self.nodes, self.values, self.slopes))
+        self.slopes, self.cdf = _tables(nodes, values, dtype)
 
     def __repr__(self):
         return f"CatmullRom1D(nodes={self.nodes.shape[-1]})"
 
+    def _spline(self):
+        return _Spline(self.nodes, self.values, self.slopes, self.cdf)
+
     def _parameters_valid(self):
-        segments = _segment_integrals(jnp, self.nodes, self.values, self.slopes)
-        return (jnp.all(jnp.isfinite(self.nodes) & jnp.isfinite(self.values) & (self.values >= 0))
-                & jnp.all(self.nodes[1:] > self.nodes[:-1]) & jnp.all(segments >= 0) & (self.cdf[-1] > 0))
+        return self._spline().valid()
 
     def integral(self) -> jax.Array:
         """∫ f over [x_0, x_{N-1}], f the spline (the density's normalization)."""
         return self.cdf[-1]
 
-    def _segment(self, k):
-        """(x_k, w, a0, a1, a2, a3) of segment k: its start, width and cubic in t."""
-        start, width = self.nodes[k], self.nodes[k + 1] - self.nodes[k]
-        return (start, width, *_hermite(self.values[k], self.values[k + 1], width * self.slopes[k],
-                                        width * self.slopes[k + 1]))
-
-    def _cdf_at(self, k, t):
-        """C(x) for x = x_k + w t in segment k: the mass before the segment plus F_k(t), over ∫f."""
-        _, width, a0, a1, a2, a3 = self._segment(k)
-        before = jnp.where(k > 0, self.cdf[jnp.maximum(k - 1, 0)], 0.0)
-        within = width * t * (a0 + t * (a1 / 2.0 + t * (a2 / 3.0 + t * a3 / 4.0)))
-        return (before + within) / self.cdf[-1]
-
-    def _locate(self, x):
-        """(k, t): the segment holding x (the last one for x = x_{N-1}) and the position in it, in [0, 1]."""
-        k = jnp.clip(search_right(self.nodes, x) - 1, 0, self.nodes.shape[-1] - 2)
-        start, width = self.nodes[k], self.nodes[k + 1] - self.nodes[k]
-        return k, jnp.clip((x - start) / width, 0.0, 1.0)
-
-    def _solve(self, k, r):
-        """t in [0, 1] with F_k(t) = r F_k(1), by Newton-bisection (no derivatives flow through it).
-
-        An iterate whose residual is within rounding of 0 is final: there the residual's sign is
-        noise, and a bracket or bisection step taken on it would move t away from the root."""
-        _, _, a0, a1, a2, a3 = jax.tree_util.tree_map(jax.lax.stop_gradient, self._segment(k))
-        r = jax.lax.stop_gradient(r)
-        target = r * (a0 + a1 / 2.0 + a2 / 3.0 + a3 / 4.0)
-        noise = 8.0 * jnp.finfo(target.dtype).eps * (jnp.abs(a0) + jnp.abs(a1) + jnp.abs(a2) + jnp.abs(a3))
-        t = linear_quantile(r, a0, a0 + a1 + a2 + a3)[0]
-        low, high = jnp.zeros_like(t), jnp.ones_like(t)
-        done = jnp.zeros(t.shape, bool)
-        for _ in range(_NEWTON_STEPS):
-            excess = t * (a0 + t * (a1 / 2.0 + t * (a2 / 3.0 + t * a3 / 4.0))) - target
-            density = a0 + t * (a1 + t * (a2 + t * a3))
-            done = done | (jnp.abs(excess) <= noise)
-            low, high = jnp.where(excess < 0, t, low), jnp.where(excess < 0, high, t)
-            step = t - excess / jnp.where(density > 0, density, 1.0)
-            step = jnp.where((density > 0) & (step >= low) & (step <= high), step, 0.5 * (low + high))
-            t = jnp.where(done, t, step)
-        return t
-
     @point_method
     def warp(self, u):
-        return self.warp_with_pdf(u)[0]
+        return self._spline().warp_with_pdf(u[..., 0])[0]
 
     @point_method
     def warp_with_pdf(self, u):
-        u0 = u[..., 0]
-        k, r = select_with_remainder(self.cdf / self.cdf[-1], u0)
-        t = self._solve(k, r)
-        start, width, a0, a1, a2, a3 = self._segment(k)
-        # The implicit function C(x) = u: with t held, x = x_k + w t moves with the nodes, and the
-        # correction −(∂C at fixed t − du)/p adds what C(x) = u asks beyond that; its value is 0.
-        residual = _derivative_only(self._cdf_at(k, t) - u0)
-        p = jax.lax.stop_gradient(a0 + t * (a1 + t * (a2 + t * a3))) / jax.lax.stop_gradient(self.cdf[-1])
-        correction = jnp.where(p > 0, residual / jnp.where(p > 0, p, 1.0), 0.0)
-        x = jnp.clip(start + width * t - correction, self.nodes[0], self.nodes[-1])
-        s = (x - start) / width  # t again, carrying x's derivatives into the density
-        density = (a0 + s * (a1 + s * (a2 + s * a3))) / self.cdf[-1]
-        return x, jnp.maximum(density, 0.0)
+        return self._spline().warp_with_pdf(u[..., 0])
 
     @point_method
     def pdf(self, x):
-        k, t = self._locate(x)
-        _, _, a0, a1, a2, a3 = self._segment(k)
-        inside = (x >= self.nodes[0]) & (x <= self.nodes[-1])
-        f = jnp.maximum(a0 + t * (a1 + t * (a2 + t * a3)), 0.0)
-        return jnp.where(inside, f / self.cdf[-1], 0.0).astype(jnp.result_type(x, float))
+        return self._spline().pdf(x)
 
     @point_method
     def inverse(self, x):
-        k, t = self._locate(x)
-        return jnp.clip(self._cdf_at(k, t), 0.0, 1.0)[..., None]
+        return self._spline().inverse(x)
 
     def domain(self):
-        nodes = concrete_value(self.nodes)
-        if nodes is None:
-            raise ValueError("CatmullRom1D.domain: needs concrete 'nodes'")
-        nodes = np.asarray(nodes, np.float64)
-        return Interval(float(nodes[0]), float(nodes[-1]), breaks=nodes[1:-1], graded=False)
+        return _interval("CatmullRom1D", self.nodes)
+
+
+def _row_at(alpha_nodes, values, alpha):
+    """f(α, x_k) for every k: the rows' Catmull-Rom interpolation at α (the spline of each column
+    through (α_j, values[j, k]), PBRT-v4 `CatmullRomWeights`), from the four rows around α."""
+    last = alpha_nodes.shape[-1] - 1
+    j = jnp.clip(search_right(alpha_nodes, alpha) - 1, 0, last - 1)
+    before, after = jnp.maximum(j - 1, 0), jnp.minimum(j + 2, last)
+    width = alpha_nodes[j + 1] - alpha_nodes[j]
+    # Slopes in α at α_j and α_{j+1}: centred differences inside, one-sided at the first and last node.
+    slope0 = (values[j + 1] - values[before]) / (alpha_nodes[j + 1] - alpha_nodes[before])
+    slope1 = (values[after] - values[j]) / (alpha_nodes[after] - alpha_nodes[j])
+    t = jnp.clip((alpha - alpha_nodes[j]) / width, 0.0, 1.0)
+    a0, a1, a2, a3 = _hermite(values[j], values[j + 1], width * slope0, width * slope1)
+    return a0 + t * (a1 + t * (a2 + t * a3))
+
+
+class CatmullRom2D(Sampler):
+    """p(x | α) = f(α, x) / ∫ f(α, x') dx' on [x_0, x_{N-1}] (length measure, over x at the fixed
+    `alpha`), 0 outside: the conditional of a table f(α_j, x_k) = values[j, k] interpolated by the
+    Catmull-Rom spline in α and then in x (PBRT-v4 `SampleCatmullRom2D`, which samples measured
+    BSDF tables along one coordinate given another).
+
+    At α the rows' values are interpolated column by column (the spline of `CatmullRom1D` through
+    (α_j, values[j, k])), and the result is sampled, inverted and integrated as `CatmullRom1D` does,
+    derivatives in α included (the implicit function C(x; α) = u). `alpha` may carry a batch (one
+    conditional per α, the table shared). Rows as `CatmullRom1D`'s values; α within
+    [α_0, α_{A-1}]; the interpolated row must be >= 0 with a spline that does not dip below 0: a
+    Catmull-Rom spline overshoots between rows too (ValueError when concrete; NaN for an α out of
+    range or a row below 0 when traced; a traced dip between nodes is clamped to 0).
+    """
+
+    alpha_nodes: jax.Array = parameter(rank=1, doc="α_0 < ... < α_{A-1}, the rows' parameters")
+    nodes: jax.Array = parameter(rank=1, doc="x_0 < ... < x_{N-1}, the columns' positions")
+    values: jax.Array = parameter(rank=2, doc="f(α_j, x_k) >= 0, shape (A, N)")
+    alpha: jax.Array = parameter(doc="the α the density is conditioned on, within [α_0, α_{A-1}]")
+    uniform_dims: ClassVar[int] = 1
+    event_shape: ClassVar = ()
+    measure: ClassVar = "length"
+
+    def __init__(self, alpha_nodes, nodes, values, alpha):
+        alpha_nodes, nodes, values = as_array(alpha_nodes), as_array(nodes), as_array(values)
+        if values.ndim != 2 or alpha_nodes.ndim != 1 or values.shape != (alpha_nodes.shape[-1], nodes.shape[-1]):
+            raise ValueError(f"CatmullRom2D: parameter 'values' must have shape (len(alpha_nodes), len(nodes)) = "
+                             f"({alpha_nodes.shape[-1]}, {nodes.shape[-1]}); got {values.shape}")
+        _check_nodes("CatmullRom2D", "alpha_nodes", alpha_nodes)
+        _check_nodes("CatmullRom2D", "nodes", nodes)
+        rows = concrete_value(values)
+        if rows is not None and not (np.all(np.isfinite(rows)) and np.all(np.asarray(rows) >= 0)):
+            raise ValueError(f"CatmullRom2D: parameter 'values' must be finite and >= 0; got {rows}")
+        dtype = jnp.result_type(alpha_nodes, nodes, values, float)
+        self.alpha_nodes, self.nodes = jnp.asarray(alpha_nodes, dtype), jnp.asarray(nodes, dtype)
+        self.values, self.alpha = jnp.asarray(values, dtype), alpha
+        grid, at = concrete_value(alpha_nodes), concrete_value(alpha)
+        if grid is not None and at is not None:
+            grid, at = np.asarray(grid, np.float64), np.asarray(at, np.float64)
+            if not np.all((at >= grid[0]) & (at <= grid[-1])):
+                raise ValueError(f"CatmullRom2D: parameter 'alpha' must lie in [{grid[0]}, {grid[-1]}] (the rows' "
+                                 f"alpha_nodes); got {at}")
+            if rows is not None:
+                self._check_rows(np.asarray(concrete_value(nodes), np.float64), np.asarray(rows, np.float64), grid,
+                                 np.atleast_1d(at))
+
+    @staticmethod
+    def _check_rows(nodes, rows, grid, alphas):
+        """ValueError if the row interpolated at some α has no mass or a spline that dips below 0."""
+        interpolated = np.asarray(jax.vmap(lambda a: _row_at(jnp.asarray(grid), jnp.asarray(rows), a))(
+            jnp.asarray(alphas)))
+        lowest, where = _minimum(nodes, interpolated)
+        scale = np.max(np.abs(rows))
+        worst = int(np.argmin(lowest))
+        if lowest[worst] < -1e-12 * scale:
+            raise ValueError(f"CatmullRom2D: parameter 'values' interpolated at alpha = {alphas[worst]:.6g} makes a "
+                             f"spline that dips below 0 (to {lowest[worst]:.3g} at x = {where[worst]:.6g}), which is "
+                             f"no density: a Catmull-Rom spline overshoots next to a jump to 0, between rows as "
+                             f"between columns; add rows or nodes there")
+        empty = ~np.any(interpolated > 0, axis=-1)
+        if np.any(empty):
+            raise ValueError(f"CatmullRom2D: parameter 'values' interpolated at alpha = "
+                             f"{alphas[int(np.argmax(empty))]:.6g} is 0 everywhere: no density")
+
+    def __repr__(self):
+        return f"CatmullRom2D(shape={self.values.shape[-2:]})"
+
+    def _spline(self):
+        row = _row_at(self.alpha_nodes, self.values, self.alpha)
+        return _Spline(self.nodes, row, *_tables(self.nodes, row, row.dtype))
+
+    def _parameters_valid(self):
+        if self.batch_shape:
+            return jnp.all(over_members(lambda member: member._parameters_valid(), self))
+        inside = (self.alpha >= self.alpha_nodes[0]) & (self.alpha <= self.alpha_nodes[-1])
+        ordered = jnp.all(self.alpha_nodes[1:] > self.alpha_nodes[:-1])
+        declared = super()._parameters_valid()
+        valid = inside & ordered & self._spline().valid()
+        return valid if declared is None else declared & valid
+
+    def integral(self) -> jax.Array:
+        """∫ f(α, x) dx over [x_0, x_{N-1}] at this α (the conditional density's normalization), one
+        per member of a batch of α; NaN for a traced α out of range."""
+        if self.batch_shape:
+            return over_members(lambda member: member.integral(), self)
+        return jnp.where(self._parameters_valid(), self._spline().cdf[-1], jnp.nan)
+
+    @point_method
+    def warp(self, u):
+        return self._spline().warp_with_pdf(u[..., 0])[0]
+
+    @point_method
+    def warp_with_pdf(self, u):
+        return self._spline().warp_with_pdf(u[..., 0])
+
+    @point_method
+    def pdf(self, x):
+        return self._spline().pdf(x)
+
+    @point_method
+    def inverse(self, x):
+        return self._spline().inverse(x)
+
+    def domain(self):
+        return _interval("CatmullRom2D", self.nodes)

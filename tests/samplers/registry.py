@@ -213,6 +213,15 @@ def catmull_rom_1d(nodes, values):
     return js.CatmullRom1D(nodes, values)
 
 
+def catmull_rom_2d(alpha_nodes, nodes, values, alpha):
+    return js.CatmullRom2D(alpha_nodes, nodes, values, alpha)
+
+
+SPLINE_ALPHAS = [0.0, 0.4, 1.0, 1.5]
+SPLINE_X = [0.0, 0.3, 0.5, 1.2, 2.0]
+SPLINE_ROWS = (1.0 + 0.5 * np.sin(3.0 * np.array(SPLINE_ALPHAS)[:, None] + 2.0 * np.array(SPLINE_X)[None, :])).tolist()
+
+
 def mixture_of_exponentials(weights, rate):
     return js.Mixture((js.Exponential(1.0), js.Exponential(rate)), weights)
 
@@ -539,6 +548,11 @@ ENTRIES = [
            _C(([-1.0, 1.0], [0.5, 2.0])), _C(([0.0, 1.0, 2.0, 4.0], [2.0, 1.0, 0.5, 0.0]), chi2=False)),
           np.array([0.0, 0.25, 1.2, 3.0, -1.0, 3.5]), 1_000_000, inverse=_LINE_INVERSE,
           pdf_rtol=1e-4, positive_at_edges=False),
+    # A smooth positive table, conditioned between rows, on the first row and on the last.
+    Entry("CatmullRom2D", catmull_rom_2d,
+          (_C((SPLINE_ALPHAS, SPLINE_X, SPLINE_ROWS, 0.7)), _C((SPLINE_ALPHAS, SPLINE_X, SPLINE_ROWS, 0.0), chi2=False),
+           _C((SPLINE_ALPHAS, SPLINE_X, SPLINE_ROWS, 1.5), chi2=False)),
+          np.array([0.0, 0.25, 1.2, 2.0, -1.0, 2.5]), 1_000_000, inverse=_LINE_INVERSE, pdf_rtol=1e-4),
     # ---- finite sets (counting) ----
     Entry("Discrete-cdf", discrete, (_C((WEIGHTS,)), _C((np.array([2.5]),), gradients=False),
                                      _C((np.ones(1),), gradients=False),

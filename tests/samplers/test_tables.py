@@ -176,3 +176,57 @@ def test_a_catmull_rom_table_must_make_a_density():
         js.CatmullRom1D([0.0, 1.0, 2.0, 3.0, 4.0], [0.0, 0.0, 1.0, 0.0, 0.0])
     traced = jax.jit(lambda v: js.CatmullRom1D(SPLINE_NODES, v).integral())(jnp.asarray(SPLINE_VALUES, jnp.float32))
     assert float(traced) == pytest.approx(float(js.CatmullRom1D(SPLINE_NODES, SPLINE_VALUES).integral()), rel=1e-6)
+
+
+SPLINE_ALPHAS = np.array([0.0, 0.4, 1.0, 1.5])
+SPLINE_ROWS = 1.0 + 0.5 * np.sin(3.0 * SPLINE_ALPHAS[:, None] + 2.0 * SPLINE_NODES[None, :])
+
+
+def test_the_catmull_rom_conditional_interpolates_its_rows_as_pbrt_does():
+    """In float64: at α = 0.7, pdf at 2048 points and `integral()` against the independent spline in x
+    through the columns' independent splines in α at 0.7 (to 1e-12); at α = α_1 the conditional is
+    row 1's `CatmullRom1D`; a batch of three α gives each member's integral."""
+    with jax.enable_x64(True):
+        row = np.array([_catmull_rom(SPLINE_ALPHAS, SPLINE_ROWS[:, k], 0.7) for k in range(len(SPLINE_NODES))])
+        integral = _gauss_legendre_1d(lambda x: _catmull_rom(SPLINE_NODES, row, x), SPLINE_NODES)
+        table = js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, 0.7)
+        points = np.random.default_rng(6).uniform(0.0, 3.0, 2048)
+        np.testing.assert_allclose(float(table.integral()), integral, rtol=1e-12)
+        np.testing.assert_allclose(np.asarray(table.pdf(jnp.asarray(points))),
+                                   _catmull_rom(SPLINE_NODES, row, points) / integral, rtol=1e-12)
+        on_a_row = js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, 0.4)
+        np.testing.assert_allclose(np.asarray(on_a_row.pdf(jnp.asarray(points))),
+                                   np.asarray(js.CatmullRom1D(SPLINE_NODES, SPLINE_ROWS[1]).pdf(jnp.asarray(points))),
+                                   rtol=1e-12)
+        batch = js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, jnp.asarray([0.0, 0.7, 1.5]))
+        alone = [float(js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, a).integral()) for a in (0.0, 0.7, 1.5)]
+        np.testing.assert_allclose(np.asarray(batch.integral()), alone, rtol=1e-12)
+
+
+def test_catmull_rom_conditional_samples_move_with_alpha():
+    """dx/dα of samples at five uniforms against central differences of the warp, in float64."""
+    def sample(alpha):
+        return js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, alpha).warp(u)
+
+    with jax.enable_x64(True):
+        u = jnp.asarray([[0.05], [0.3], [0.37], [0.71], [0.96]])
+        for alpha in (0.2, 0.7, 1.3):
+            step = 1e-6
+            by_differences = (sample(alpha + step) - sample(alpha - step)) / (2 * step)
+            np.testing.assert_allclose(np.asarray(jax.jacfwd(sample)(jnp.asarray(alpha))), np.asarray(by_differences),
+                                       rtol=1e-6, atol=1e-8)
+
+
+def test_a_catmull_rom_conditional_must_make_a_density():
+    """ValueError naming the parameter: α outside the rows' range, a table of the wrong shape, and rows
+    whose interpolation between them overshoots below 0 (a row of zeros next to positive rows)."""
+    with pytest.raises(ValueError, match="'alpha' must lie in"):
+        js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, 1.6)
+    with pytest.raises(ValueError, match="'values' must have shape"):
+        js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS[:, :-1], 0.7)
+    rows = SPLINE_ROWS.copy()
+    rows[:2] = 0.0
+    with pytest.raises(ValueError, match="interpolated at alpha = 0.2 .*dips below 0"):
+        js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, rows, jnp.asarray([1.2, 0.2]))
+    traced = jax.jit(lambda a: js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, a).integral())
+    assert np.isnan(float(traced(2.0))) and np.isfinite(float(traced(0.7)))
