@@ -199,7 +199,8 @@ def test_the_catmull_rom_conditional_interpolates_its_rows_as_pbrt_does():
                                    np.asarray(js.CatmullRom1D(SPLINE_NODES, SPLINE_ROWS[1]).pdf(jnp.asarray(points))),
                                    rtol=1e-12)
         batch = js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, jnp.asarray([0.0, 0.7, 1.5]))
-        alone = [float(js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, a).integral()) for a in (0.0, 0.7, 1.5)]
+        alone = [float(js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, a).integral())
+                 for a in (0.0, 0.7, 1.5)]
         np.testing.assert_allclose(np.asarray(batch.integral()), alone, rtol=1e-12)
 
 
