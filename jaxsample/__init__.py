@@ -28,6 +28,7 @@ from .samplers import (CosineHemisphere, Discrete, Exponential, Mixture, Oriente
 from .samplers import (Bilinear, CatmullRom1D, CatmullRom2D, HenyeyGreenstein, Hierarchical2D, Linear, Normal,
                        Normal2D, SmoothStep, Tent, TrimmedLogistic)
 from .samplers import CosineSphericalTriangle, SphericalRectangle, SphericalTriangle
+from .samplers import SummedAreaTable, WindowedPiecewiseConstant2D
 from .samplers import GGX, Beckmann, MicrofacetReflection, VisibleNormals
 
 # The attributes outside `__all__` that the docstring names, re-exported explicitly (`name as name`).
@@ -58,7 +59,7 @@ __all__ = [
     # planar, one-dimensional, discrete and tabulated samplers
     "UniformDisk", "UniformTriangle", "UniformBox", "Exponential", "TruncatedExponential", "Power",
     "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "PiecewiseLinear2D", "Hierarchical2D",
-    "CatmullRom1D", "CatmullRom2D",
+    "CatmullRom1D", "CatmullRom2D", "SummedAreaTable", "WindowedPiecewiseConstant2D",
     # phase function, Gaussians, low-order polynomial and other smooth 1-D densities
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     # microfacet normal distributions and the lobes built on them

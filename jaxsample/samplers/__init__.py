@@ -33,6 +33,7 @@ from .ramps import SmoothStep, TrimmedLogistic
 from .rejection import Rejection, RejectionInfo
 from .sphere import UniformHemisphere, UniformSphere
 from .spherical_rectangle import SphericalRectangle
+from .summed_area import SummedAreaTable, WindowedPiecewiseConstant2D
 from .spherical_triangle import CosineSphericalTriangle, SphericalTriangle
 from .transformed import Transformed
 from .triangle import UniformTriangle
@@ -43,7 +44,8 @@ __all__ = [
     "CosineHemisphere", "PhongLobe", "UniformCone",
     "VonMisesFisher", "Oriented", "Frame", "UniformDisk", "UniformTriangle", "UniformBox", "Exponential",
     "TruncatedExponential", "Power", "Discrete", "PiecewiseConstant1D", "PiecewiseConstant2D", "PiecewiseLinear2D",
-    "Hierarchical2D", "CatmullRom1D", "CatmullRom2D", "Rejection",
+    "Hierarchical2D", "CatmullRom1D", "CatmullRom2D", "SummedAreaTable",
+    "WindowedPiecewiseConstant2D", "Rejection",
     "RejectionInfo", "Transformed", "Mixture",
     "HenyeyGreenstein", "Normal", "Normal2D", "Tent", "Linear", "Bilinear", "SmoothStep", "TrimmedLogistic",
     "GGX", "Beckmann", "MicrofacetDistribution", "VisibleNormals", "MicrofacetReflection",

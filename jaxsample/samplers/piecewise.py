@@ -49,13 +49,17 @@ def _place_in_bin(index, remainder, n):
     down into the previous bin; a sample must never land in a neighbouring bin, which may have
     zero density.
     """
-    x = (index.astype(remainder.dtype) + remainder) / n
+    return nudge_into_bin((index.astype(remainder.dtype) + remainder) / n, index, n)
+
+
+def nudge_into_bin(x, index, n):
+    """x moved by at most two ulps so that `_bin_index(x, n)` is `index` (x must lie within rounding
+    of bin `index`). The nudge is a rounding correction: the derivative is x's."""
     nudged = jax.lax.stop_gradient(x)
     for _ in range(2):
         found = _bin_index(nudged, n)
         nudged = jnp.where(found > index, jnp.nextafter(nudged, jnp.zeros_like(x)),
                            jnp.where(found < index, jnp.nextafter(nudged, jnp.ones_like(x)), nudged))
-    # The nudge is a rounding correction: the derivative is that of (index + remainder)/n.
     return x + jax.lax.stop_gradient(nudged - x)
 
 

@@ -213,6 +213,10 @@ def catmull_rom_1d(nodes, values):
     return js.CatmullRom1D(nodes, values)
 
 
+def windowed_2d(values, low, high):
+    return js.WindowedPiecewiseConstant2D(values, low, high)
+
+
 def catmull_rom_2d(alpha_nodes, nodes, values, alpha):
     return js.CatmullRom2D(alpha_nodes, nodes, values, alpha)
 
@@ -548,6 +552,14 @@ ENTRIES = [
            _C(([-1.0, 1.0], [0.5, 2.0])), _C(([0.0, 1.0, 2.0, 4.0], [2.0, 1.0, 0.5, 0.0]), chi2=False)),
           np.array([0.0, 0.25, 1.2, 3.0, -1.0, 3.5]), 1_000_000, inverse=_LINE_INVERSE,
           pdf_rtol=1e-4, positive_at_edges=False),
+    # The 24 x 40 table (a zero row and column) in a window whose edges cut cells, the whole square, and a
+    # window 1e-3 wide inside one cell (a uniform density; in float64, as float32 resolves x there only to
+    # 3e-8 / 1e-3 = 3e-5 of u).
+    Entry("WindowedPiecewiseConstant2D", windowed_2d,
+          (_C((TABLE_2D, [0.13, 0.2], [0.71, 0.93])), _C((TABLE_2D, [0.0, 0.0], [1.0, 1.0]), chi2=False),
+           _C((TABLE_2D, [0.301, 0.502], [0.302, 0.503]), chi2=False, x64=True)),
+          np.array([[0.3, 0.6], [0.13, 0.2], [0.71, 0.93], [0.5, 0.14], [2.0, 0.5], [-0.5, 0.5]]),
+          inverse=dataclasses.replace(_LINE_INVERSE, jacobian32=None)),
     # A smooth positive table, conditioned between rows, on the first row and on the last.
     Entry("CatmullRom2D", catmull_rom_2d,
           (_C((SPLINE_ALPHAS, SPLINE_X, SPLINE_ROWS, 0.7)), _C((SPLINE_ALPHAS, SPLINE_X, SPLINE_ROWS, 0.0), chi2=False),
