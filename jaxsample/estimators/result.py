@@ -87,11 +87,12 @@ class Estimate(Statistics):
         return interval(self.mean, self.stderr, level, self.replicates)
 
     def per_evaluation(self, n: int) -> "Estimate":
-        """This estimate of n/2 pairs (antithetic pairs, one BRDF and one light sample) restated at
-        its cost of n evaluations: `variance` per evaluation (stderr² n) and `ess` counted in
-        evaluations, so that strategies compare at equal cost by `variance`."""
+        """This estimate of groups of evaluations (n/2 antithetic pairs, or one BRDF and one light
+        sample; n/4 antithetic pairs of those) restated at its cost of n evaluations: `variance` per
+        evaluation (stderr² n) and `ess` counted in evaluations, so that strategies compare at equal
+        cost by `variance`."""
         return Estimate(mean=self.mean, stderr=self.stderr, variance=self.stderr * self.stderr * n,
-                        max_abs=self.max_abs, ess=2.0 * self.ess, khat=self.khat, nonzero=self.nonzero,
+                        max_abs=self.max_abs, ess=(n / self.n) * self.ess, khat=self.khat, nonzero=self.nonzero,
                         n=n, replicates=self.replicates, gradient=self.gradient)
 
     def __repr__(self) -> str:

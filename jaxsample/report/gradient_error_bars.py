@@ -24,6 +24,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxsample as js
+from jaxsample import scene
+
+from .shade_gradients import QUADRATURE
 from .timing import median_seconds
 
 GRADIENTS = ("pathwise", "score", "measure_valued")
@@ -50,6 +53,21 @@ def gradient_table(quick: bool = True, progress=print) -> list[dict]:
     return rows
 
 
+def _phong_under_a_sphere(theta):
+    """The scene of the shade row: Phong exp(θ), albedo 0.8, under one sphere light."""
+    return (jnp.zeros(3), jnp.array([0.0, 0.0, 1.0]), jnp.array([0.3, 0.1, 1.0]), scene.Phong(jnp.exp(theta), 0.8),
+            [scene.SphereLight(jnp.array([0.5, 0.2, 2.0]), 0.4, 5.0)])
+
+
+def _shade_reference(theta, step=1e-5):
+    """d L_o / dθ of that scene by the central difference of the float64 `reference_radiance`."""
+    with jax.enable_x64(True):
+        def radiance(t):
+            return float(scene.reference_radiance(*_phong_under_a_sphere(jnp.asarray(t, jnp.float64)), **QUADRATURE))
+
+        return (radiance(theta + step) - radiance(theta - step)) / (2 * step)
+
+
 def _rotated_lobe(theta):
     """(f, sampler) of ∫ (1 + ω_x + ω_y²/2) ρ_θ(ω) dω, ρ_θ a Phong 50 lobe about (sin θ, 0, cos θ),
     sampled from the lobe itself; d/dθ = cos θ · 51/52 (the ω_y² term does not change with θ)."""
@@ -74,6 +92,12 @@ def antithetic_table(quick: bool = True, progress=print) -> list[dict]:
                       lambda key, a, m=mode: js.estimate_grad(_rotated_lobe, theta, key, n_samples, mode=m,
                                                               antithetic=a),
                       float(np.cos(theta)) * 51.0 / 52.0))
+    # A shading point: d L_o / d log n of Phong 25 under a sphere light by BRDF sampling (the boundary
+    # term inside), `scene.shade_grad` at 2^14 evaluations, against the central difference of the
+    # float64 quadrature.
+    cases.append(("d/d log n of shade, Phong 25 under a sphere light, BRDF sampling",
+                  lambda key, a: scene.shade_grad(_phong_under_a_sphere, jnp.float32(np.log(25.0)), key, 1 << 14,
+                                                  strategy="brdf", antithetic=a), _shade_reference(np.log(25.0))))
     rows = []
     for name, run, exact in cases:
         plain = None
@@ -82,7 +106,7 @@ def antithetic_table(quick: bool = True, progress=print) -> list[dict]:
             est = jax.jit(lambda key, run=run, a=antithetic: run(key, a))(jax.random.key(11))
             variance = float(est.variance)
             plain = variance if antithetic is None else plain
-            rows.append({"case": name, "pairs": antithetic or "none", "n": n_samples, "gradient": float(est.mean),
+            rows.append({"case": name, "pairs": antithetic or "none", "n": int(est.n), "gradient": float(est.mean),
                          "stderr": float(est.stderr), "exact": exact, "variance_per_evaluation": variance,
                          "variance_ratio": variance / plain})
     return rows

@@ -67,6 +67,7 @@ from .._core.entry import compiled_entry
 from .._core.counts import check_count
 from .._core.params import check_choice, resolve_float_dtype
 from ..estimators.engine import run_stream
+from ..estimators.gradient_errors import ANTITHETIC
 from ..estimators.mis import heuristic_exponent, heuristic_weights
 from ..estimators.plain import check_mode
 from ..estimators.result import Estimate
@@ -465,11 +466,12 @@ def _rim_uniforms(seed, rims):
     return jnp.stack(columns, axis=-1) if columns else jnp.zeros(seed.shape + (0,), seed.dtype)
 
 
-@compiled_entry("make", "n", "strategy", "mode", "heuristic", "beta", "uniforms", "mesh", "chunk_size", "dtype",
-                "boundary_term", check=_check_shade_grad)
+@compiled_entry("make", "n", "strategy", "mode", "heuristic", "beta", "antithetic", "uniforms", "mesh",
+                "chunk_size", "dtype", "boundary_term", check=_check_shade_grad)
 def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, strategy: str = "mis",
-               mode: str = "attached", heuristic: str = "power", beta: float | None = None, uniforms="random",
-               mesh=None, chunk_size: int | None = None, dtype=None, boundary_term: bool = True) -> Estimate:
+               mode: str = "attached", heuristic: str = "power", beta: float | None = None,
+               antithetic: str | None = None, uniforms="random", mesh=None, chunk_size: int | None = None,
+               dtype=None, boundary_term: bool = True) -> Estimate:
     """∇θ of `shade`'s estimate with its standard error; `(point, normal, wo, brdf, lights) =
     make(θ)`, θ = `params` (a pytree of floats: an exponent, a light's centre, vertices ...).
 
@@ -478,16 +480,50 @@ def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, 
     gradients, streamed in constant memory like `jaxsample.estimate_grad`, with the silhouettes'
     boundary term inside each of them. Options as in `shade`. For a scene with C colour channels
     each leaf of the result has shape (C,) + the parameter's shape: one gradient per channel.
+
+    `antithetic`: None (independent evaluations), or pairs of evaluations whose gradients are
+    averaged, as in `jaxsample.estimate_grad` (Zhang et al. 2021): "rotate" turns the BRDF sample's
+    azimuth by π (its sampler's periodic coordinate moved by 1/2; with "mis" the light sample's
+    uniforms are reflected), the antithetic sampling of a glossy lobe's derivatives; "reflect" pairs every
+    uniform u with 1 − u. n must be even (a multiple of 4 with "mis"); the standard error and
+    `variance` are per evaluation, so they compare with the plain estimator's at equal n.
     """
     return _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype,
-                       boundary_term, beta=beta)
+                       boundary_term, beta=beta, antithetic=antithetic)
+
+
+def _antithetic_partner(owner, antithetic, strategy, brdf, count):
+    """The partner of each row of `shade`'s uniforms in an antithetic pair (see `shade_grad`)."""
+    check_choice(owner, "antithetic", antithetic, ANTITHETIC)
+    if count % 2:
+        raise ValueError(f"{owner}: parameter 'n' must be {'a multiple of 4' if strategy == 'mis' else 'even'} with "
+                         "antithetic pairs (pairs of evaluations" + (", each a BRDF and a light sample)" if strategy
+                                                                      == "mis" else ")"))
+    if antithetic == "reflect":
+        return lambda u: 1.0 - u
+    if strategy == "light":
+        raise ValueError(f"{owner}: antithetic='rotate' turns the BRDF sample's azimuth, and strategy='light' draws "
+                         "no BRDF sample; use antithetic='reflect'")
+    periodic = list(getattr(brdf.sampler(jnp.array([0.0, 0.0, 1.0])), "periodic_dims", ()))
+    if not periodic:
+        raise ValueError(f"{owner}: antithetic='rotate' turns the BRDF sample's azimuth, and {type(brdf).__name__}'s "
+                         "sampler has no periodic coordinate; use antithetic='reflect'")
+
+    def rotate(u):
+        shifted = u[:, periodic] + 0.5
+        turned = u.at[:, periodic].set(jnp.where(shifted >= 1.0, shifted - 1.0, shifted))
+        # With "mis" the light's uniforms (after the BRDF's two) are reflected: shared, the pair's two
+        # light samples would be one, and its variance would count twice.
+        return turned.at[:, 2:].set(1.0 - u[:, 2:]) if strategy == "mis" else turned
+
+    return rotate
 
 
 _FORWARD_PARAMETERS = 1
 
 
 def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype, boundary=True,
-                beta=None):
+                beta=None, antithetic=None):
     n = _check_options("shade_grad", strategy, mode, heuristic, beta, n, boundary)
     flat, unravel = ravel_pytree(params)
     if not jnp.issubdtype(flat.dtype, jnp.floating):
@@ -509,6 +545,10 @@ def _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh,
             return (jax.jacfwd if flat.size <= _FORWARD_PARAMETERS else reverse)(value)(flat)
         return jax.vmap(one)(u)
 
+    if antithetic is not None:
+        partner = _antithetic_partner("shade_grad", antithetic, strategy, make(params)[3], count)
+        values_fn = (lambda single: lambda u: 0.5 * (single(u) + single(partner(u))))(values_fn)
+        count //= 2
     est = run_stream(values_fn, dims, key, count, uniforms=uniforms, mesh=mesh, chunk_size=chunk_size,
                      out_shape=channels + flat.shape, dtype=dtype, owner="shade_grad")
     if count != n:

@@ -150,3 +150,57 @@ def test_gradients_stay_finite_at_degenerate_geometry():
     assert np.all(np.isfinite(np.asarray(jax.grad(sphere)(just_outside))))
     assert np.isnan(float(jax.jit(sphere)(jnp.array([0.1, 0.2, 0.5]))))
     assert np.all(np.isfinite(np.asarray(jax.grad(on_edge)(jnp.array([-1.0, 0.0, 0.0])))))
+
+
+def _phong_under_a_sphere(theta):
+    return (jnp.zeros(3), jnp.array([0.0, 0.0, 1.0]), jnp.array([0.3, 0.1, 1.0]), scene.Phong(jnp.exp(theta), 0.8),
+            [scene.SphereLight(jnp.array([0.5, 0.2, 2.0]), 0.4, 5.0)])
+
+
+def _log_exponent_reference(theta):
+    """d L_o / d log n by the central difference of the float64 reference."""
+    with jax.enable_x64(True):
+        def reference(t):
+            return scene.reference_radiance(*_phong_under_a_sphere(jnp.asarray(t, jnp.float64)),
+                                            **shade_grid.QUADRATURE)
+
+        return (reference(theta + 1e-5) - reference(theta - 1e-5)) / 2e-5
+
+
+def test_rotated_pairs_lower_the_variance_of_a_glossy_gradient_without_bias():
+    """d L_o / d log n (Phong 25, a sphere light, the boundary term inside) by BRDF sampling at 2^16
+    evaluations: plain and antithetic="rotate" both within 4.5 stderrs of the central difference of the
+    float64 reference (2 values: false failure 1.4e-5), and the rotated pairs have at most 0.8 of the
+    plain estimator's variance per evaluation (measured 0.663 ± 0.004 over 12 keys: the bound is 29 of
+    those standard deviations away; a partner equal to its sample doubles the variance instead)."""
+    theta = np.log(25.0)
+    expected = _log_exponent_reference(theta)
+    plain = scene.shade_grad(_phong_under_a_sphere, jnp.float32(theta), jax.random.key(42), 1 << 16, strategy="brdf")
+    rotated = scene.shade_grad(_phong_under_a_sphere, jnp.float32(theta), jax.random.key(43), 1 << 16,
+                               strategy="brdf", antithetic="rotate")
+    for g in (plain, rotated):
+        assert abs(float(g.mean) - expected) < 4.5 * float(g.stderr), (float(g.mean), float(g.stderr), expected)
+    assert float(rotated.variance) < 0.8 * float(plain.variance), (float(rotated.variance), float(plain.variance))
+
+
+@pytest.mark.parametrize("strategy,antithetic", [("brdf", "reflect"), ("mis", "rotate"), ("mis", "reflect")])
+def test_every_antithetic_pairing_is_unbiased(strategy, antithetic):
+    """d L_o / d log n as above at 2^14 evaluations within 4.5 stderrs of the reference (false failure
+    6.8e-6 per case): the pairings with "mis", whose light uniforms are reflected, and "reflect"."""
+    theta = np.log(25.0)
+    g = scene.shade_grad(_phong_under_a_sphere, jnp.float32(theta), jax.random.key(41), 1 << 14, strategy=strategy,
+                         antithetic=antithetic)
+    expected = _log_exponent_reference(theta)
+    assert abs(float(g.mean) - expected) < 4.5 * float(g.stderr), (float(g.mean), float(g.stderr), expected)
+
+
+def test_antithetic_shade_gradients_refuse_what_they_cannot_pair():
+    """ValueError: "rotate" with light sampling alone (no BRDF sample to turn), n not a multiple of 4
+    with "mis", an unknown pairing."""
+    theta = jnp.float32(np.log(25.0))
+    with pytest.raises(ValueError, match="strategy='light' draws no BRDF sample"):
+        scene.shade_grad(_phong_under_a_sphere, theta, jax.random.key(0), 1024, strategy="light", antithetic="rotate")
+    with pytest.raises(ValueError, match="multiple of 4"):
+        scene.shade_grad(_phong_under_a_sphere, theta, jax.random.key(0), 1026, antithetic="reflect")
+    with pytest.raises(ValueError, match="antithetic"):
+        scene.shade_grad(_phong_under_a_sphere, theta, jax.random.key(0), 1024, antithetic="mirror")
