@@ -1171,7 +1171,7 @@ MUTATIONS = [
       ("tests/samplers/test_tables.py::test_the_catmull_rom_density_is_pbrts_spline_over_its_integral",),
       "each segment's integral with the slope term doubled: the normalization and the segment choice off"),
     M("catmull-rom-converged-root-moved", "jaxsample/samplers/catmull_rom.py",
-      "t = jnp.where(done, t, step)", "t = step",
+      "return jnp.where(done, t, step), low, high, done", "return step, low, high, done",
       ("tests/samplers/test_tables.py::test_the_catmull_rom_density_is_pbrts_spline_over_its_integral",),
       "a root found to rounding keeps iterating: the residual's noisy sign triggers bisection away from it"),
     M("catmull-rom-derivative-of-the-iteration", "jaxsample/samplers/catmull_rom.py",

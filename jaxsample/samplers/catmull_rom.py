@@ -168,17 +168,18 @@ class _Spline(NamedTuple):
         target = r * (a0 + a1 / 2.0 + a2 / 3.0 + a3 / 4.0)
         noise = 8.0 * jnp.finfo(target.dtype).eps * (jnp.abs(a0) + jnp.abs(a1) + jnp.abs(a2) + jnp.abs(a3))
         t = linear_quantile(r, a0, a0 + a1 + a2 + a3)[0]
-        low, high = jnp.zeros_like(t), jnp.ones_like(t)
-        done = jnp.zeros(t.shape, bool)
-        for _ in range(_NEWTON_STEPS):
+        def newton_or_bisection(_, state):
+            t, low, high, done = state
             excess = t * (a0 + t * (a1 / 2.0 + t * (a2 / 3.0 + t * a3 / 4.0))) - target
             density = a0 + t * (a1 + t * (a2 + t * a3))
             done = done | (jnp.abs(excess) <= noise)
             low, high = jnp.where(excess < 0, t, low), jnp.where(excess < 0, high, t)
             step = t - excess / jnp.where(density > 0, density, 1.0)
             step = jnp.where((density > 0) & (step >= low) & (step <= high), step, 0.5 * (low + high))
-            t = jnp.where(done, t, step)
-        return t
+            return jnp.where(done, t, step), low, high, done
+
+        start = (t, jnp.zeros_like(t), jnp.ones_like(t), jnp.zeros(t.shape, bool))
+        return jax.lax.fori_loop(0, _NEWTON_STEPS, newton_or_bisection, start)[0]
 
     def warp_with_pdf(self, u0):
         k, r = select_with_remainder(self.cdf / self.cdf[-1], u0)
