@@ -221,7 +221,38 @@ def _interval(owner, nodes):
     return Interval(float(nodes[0]), float(nodes[-1]), breaks=nodes[1:-1], graded=False)
 
 
-class CatmullRom1D(Sampler):
+class _SplineDensity(Sampler):
+    """What the two spline densities share: one spline over the nodes (`_spline()`, the subclass's),
+    sampled, evaluated and inverted as `_Spline` does, over the length measure."""
+
+    uniform_dims: ClassVar[int] = 1
+    event_shape: ClassVar = ()
+    measure: ClassVar = "length"
+
+    def _spline(self) -> _Spline:
+        raise NotImplementedError
+
+    @point_method
+    def warp(self, u):
+        return self._spline().warp_with_pdf(u[..., 0])[0]
+
+    @point_method
+    def warp_with_pdf(self, u):
+        return self._spline().warp_with_pdf(u[..., 0])
+
+    @point_method
+    def pdf(self, x):
+        return self._spline().pdf(x)
+
+    @point_method
+    def inverse(self, x):
+        return self._spline().inverse(x)
+
+    def domain(self):
+        return _interval(type(self).__name__, self.nodes)
+
+
+class CatmullRom1D(_SplineDensity):
     """p(x) = f(x) / ∫f on [x_0, x_{N-1}] (length measure), 0 outside, f the Catmull-Rom spline
     through (`nodes`, `values`) described in the module docstring (PBRT-v4 `SampleCatmullRom`).
 
@@ -240,9 +271,6 @@ class CatmullRom1D(Sampler):
     values: jax.Array = parameter(rank=1, doc="f(x_k) >= 0")
     slopes: jax.Array = parameter(rank=1)
     cdf: jax.Array = parameter(rank=1)
-    uniform_dims: ClassVar[int] = 1
-    event_shape: ClassVar = ()
-    measure: ClassVar = "length"
     batchable: ClassVar = False
 
     def __init__(self, nodes, values):
@@ -265,25 +293,6 @@ class CatmullRom1D(Sampler):
         """∫ f over [x_0, x_{N-1}], f the spline (the density's normalization)."""
         return self.cdf[-1]
 
-    @point_method
-    def warp(self, u):
-        return self._spline().warp_with_pdf(u[..., 0])[0]
-
-    @point_method
-    def warp_with_pdf(self, u):
-        return self._spline().warp_with_pdf(u[..., 0])
-
-    @point_method
-    def pdf(self, x):
-        return self._spline().pdf(x)
-
-    @point_method
-    def inverse(self, x):
-        return self._spline().inverse(x)
-
-    def domain(self):
-        return _interval("CatmullRom1D", self.nodes)
-
 
 def _row_at(alpha_nodes, values, alpha):
     """f(α, x_k) for every k: the rows' Catmull-Rom interpolation at α (the spline of each column
@@ -300,7 +309,7 @@ def _row_at(alpha_nodes, values, alpha):
     return a0 + t * (a1 + t * (a2 + t * a3))
 
 
-class CatmullRom2D(Sampler):
+class CatmullRom2D(_SplineDensity):
     """p(x | α) = f(α, x) / ∫ f(α, x') dx' on [x_0, x_{N-1}] (length measure, over x at the fixed
     `alpha`), 0 outside: the conditional of a table f(α_j, x_k) = values[j, k] interpolated by the
     Catmull-Rom spline in α and then in x (PBRT-v4 `SampleCatmullRom2D`, which samples measured
@@ -319,9 +328,6 @@ class CatmullRom2D(Sampler):
     nodes: jax.Array = parameter(rank=1, doc="x_0 < ... < x_{N-1}, the columns' positions")
     values: jax.Array = parameter(rank=2, doc="f(α_j, x_k) >= 0, shape (A, N)")
     alpha: jax.Array = parameter(doc="the α the density is conditioned on, within [α_0, α_{A-1}]")
-    uniform_dims: ClassVar[int] = 1
-    event_shape: ClassVar = ()
-    measure: ClassVar = "length"
 
     def __init__(self, alpha_nodes, nodes, values, alpha):
         alpha_nodes, nodes, values = as_array(alpha_nodes), as_array(nodes), as_array(values)
@@ -387,21 +393,3 @@ class CatmullRom2D(Sampler):
             return over_members(lambda member: member.integral(), self)
         return jnp.where(self._parameters_valid(), self._spline().cdf[-1], jnp.nan)
 
-    @point_method
-    def warp(self, u):
-        return self._spline().warp_with_pdf(u[..., 0])[0]
-
-    @point_method
-    def warp_with_pdf(self, u):
-        return self._spline().warp_with_pdf(u[..., 0])
-
-    @point_method
-    def pdf(self, x):
-        return self._spline().pdf(x)
-
-    @point_method
-    def inverse(self, x):
-        return self._spline().inverse(x)
-
-    def domain(self):
-        return _interval("CatmullRom2D", self.nodes)
