@@ -28,6 +28,13 @@ def one_minus_epsilon(dtype) -> float:
     return float(np.nextafter(np.array(1.0, dtype=dtype), np.array(0.0, dtype=dtype)))
 
 
+def clamp_rounding(x: jax.Array, low, high) -> jax.Array:
+    """x clipped into [low, high] with x's own derivative: for a value that can leave the interval
+    only by rounding (a position within a cell, a sample on its support's edge), so that the clip
+    neither zeroes the derivative outside nor halves it on a bound (`jnp.clip`'s 0.5 there)."""
+    return x + jax.lax.stop_gradient(jnp.clip(x, low, high) - x)
+
+
 def clamp_unit_interval(u: jax.Array) -> jax.Array:
     """Clamp `u` into [0, 1 - ulp]: 32 random bits times 2^-32 can round to exactly 1."""
     u = jnp.asarray(u)

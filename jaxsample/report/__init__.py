@@ -526,9 +526,10 @@ def run(out_dir: str = "report", quick: bool = False, tiny: bool = False) -> Pat
             _write_csv(out / "many_lights.csv", light_rows)
             md += ["## Scene: choosing among many lights\n",
                    "A Lambertian point under one `SphereLights` batch (radiance over four orders of magnitude, "
-                   "distances over ten), shaded with each selection rule and strategy, against the exact radiance "
-                   "(each sphere above the horizon contributes albedo · L (r/d)² cos θ): estimate, z, variance and "
-                   "time per evaluation (interleaved medians), and variance × time against uniform selection.\n",
+                   "distances from 0.6 to 7.5), shaded with each selection rule and strategy, against the exact "
+                   "radiance (each sphere above the horizon contributes albedo · L (r/d)² cos θ): estimate, z, "
+                   "variance and time per evaluation (interleaved medians), and variance × time against uniform "
+                   "selection.\n",
                    many.markdown(light_rows)]
         except (ImportError, AttributeError) as error:
             md += ["## Scene\n", f"Not available in this checkout ({error}).\n"]

@@ -3,7 +3,7 @@
 Run alone: `python -m jaxsample.report.many_lights [--quick]`.
 
 A Lambertian point under K sphere lights (`scene.SphereLights`, one batch) whose radiance spans four
-orders of magnitude and whose distances vary tenfold, shaded with each selection rule ("uniform",
+orders of magnitude and whose distances run from 0.6 to 7.5, shaded with each selection rule ("uniform",
 "power", "solid_angle") and each of "light" and "mis": estimate ± stderr against the closed form,
 variance per evaluation, time per evaluation (interleaved medians) and variance × time against
 uniform selection. The reference is exact: a sphere entirely above the horizon gives a Lambertian

@@ -18,7 +18,7 @@ from .base import Sampler, point_method
 from .._core.params import check_choice, check_number, concrete_value, default_float_dtype
 from .._core.pytree import parameter, static_field
 from .domain import DiscreteSet
-from .._core.numerics import one_minus_epsilon
+from .._core.numerics import clamp_rounding, one_minus_epsilon
 
 
 def as_array(x):
@@ -136,7 +136,7 @@ def select_with_remainder(cdf, u):
     lower = jnp.where(index > 0, cdf[jnp.maximum(index - 1, 0)], 0.0)
     width = upper - lower
     remainder = (u - lower) / jnp.where(width > 0, width, 1.0)
-    return index, jnp.clip(remainder, 0.0, one_minus_epsilon(remainder.dtype)).astype(u.dtype)
+    return index, clamp_rounding(remainder, 0.0, one_minus_epsilon(remainder.dtype)).astype(u.dtype)
 
 
 def select_rows_with_remainder(cdf_rows, row, u):
@@ -158,7 +158,7 @@ def select_rows_with_remainder(cdf_rows, row, u):
     lower = jnp.where(index > 0, cdf_rows[row, jnp.maximum(index - 1, 0)], 0.0)
     width = upper - lower
     remainder = (u - lower) / jnp.where(width > 0, width, 1.0)
-    return index, jnp.clip(remainder, 0.0, one_minus_epsilon(remainder.dtype)).astype(u.dtype)
+    return index, clamp_rounding(remainder, 0.0, one_minus_epsilon(remainder.dtype)).astype(u.dtype)
 
 
 def build_alias_table(pmf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -281,7 +281,7 @@ class Discrete(Sampler):
         remainder = jnp.where(keep, fraction / jnp.where(keep_probability > 0, keep_probability, 1.0),
                               (fraction - keep_probability)
                               / jnp.where(keep_probability < 1, 1.0 - keep_probability, 1.0))
-        return outcome, jnp.clip(remainder, 0.0, one_minus_epsilon(u0.dtype))
+        return outcome, clamp_rounding(remainder, 0.0, one_minus_epsilon(u0.dtype))
 
     @point_method
     def warp(self, u):

@@ -485,8 +485,10 @@ def shade_grad(make: Callable[[Any], tuple], params, key: jax.Array, n: int, *, 
     averaged, as in `jaxsample.estimate_grad` (Zhang et al. 2021): "rotate" turns the BRDF sample's
     azimuth by π (its sampler's periodic coordinate moved by 1/2; with "mis" the light sample's
     uniforms are reflected), the antithetic sampling of a glossy lobe's derivatives; "reflect" pairs every
-    uniform u with 1 − u. n must be even (a multiple of 4 with "mis"); the standard error and
-    `variance` are per evaluation, so they compare with the plain estimator's at equal n.
+    uniform u with 1 − u. n must be even (a multiple of 4 with "mis"); `variance` is per
+    evaluation, so it compares with the plain estimator's at equal n. With "mis" pairing can cost:
+    on Phong 25 under a sphere light it raised the variance of d/d log n 1.6x (the light samples'
+    share gains nothing from the pairs), where by BRDF sampling "rotate" lowered it to 0.66x.
     """
     return _shade_grad(make, params, key, n, strategy, mode, heuristic, uniforms, mesh, chunk_size, dtype,
                        boundary_term, beta=beta, antithetic=antithetic)

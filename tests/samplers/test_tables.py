@@ -134,11 +134,21 @@ def test_the_catmull_rom_density_is_pbrts_spline_over_its_integral():
         np.testing.assert_allclose(float(table.integral()), integral, rtol=1e-12)
         np.testing.assert_allclose(np.asarray(table.pdf(jnp.asarray(points))),
                                    _catmull_rom(SPLINE_NODES, SPLINE_VALUES, points) / integral, rtol=1e-12)
-        u = jnp.asarray(np.random.default_rng(5).random((512, 1)))
+        u = jnp.asarray(np.concatenate([np.zeros((1, 1)), np.random.default_rng(5).random((511, 1))]))
         x, p = table.warp_with_pdf(u)
         np.testing.assert_allclose(np.asarray(table.inverse(x)), np.asarray(u), rtol=0, atol=1e-12)
-        slope = jax.vmap(jax.grad(lambda row: table.warp(row[None])[0]))(u)
+        slope = jax.vmap(jax.grad(lambda row: table.warp(row[None])[0]))(u)  # u = 0 included: x on x_0
         np.testing.assert_allclose(np.asarray(slope)[:, 0] * np.asarray(p), 1.0, rtol=1e-9)
+        # The density's derivative on the inner nodes against central differences (the spline is C¹ there,
+        # its second derivative jumps: the difference is good to h times that jump, 1e-6 here).
+        inner = jnp.asarray(SPLINE_NODES[1:-1])
+        by_differences = (table.pdf(inner + 1e-7) - table.pdf(inner - 1e-7)) / 2e-7
+        np.testing.assert_allclose(np.asarray(jax.vmap(jax.grad(table.pdf))(inner)), np.asarray(by_differences),
+                                   rtol=1e-4)
+        # A spline that touches 0 inside (a triple root of the CDF equation) inverts to rounding too.
+        touching = js.CatmullRom1D([0.0, 1.0, 2.0], [1.0, 0.0, 1.0])
+        u = jnp.asarray(np.random.default_rng(12).random((20000, 1)))
+        np.testing.assert_allclose(np.asarray(touching.inverse(touching.warp(u))), np.asarray(u), rtol=0, atol=1e-12)
 
 
 def test_catmull_rom_samples_move_with_the_table_as_their_cdf_says():
@@ -211,11 +221,17 @@ def test_catmull_rom_conditional_samples_move_with_alpha():
 
     with jax.enable_x64(True):
         u = jnp.asarray([[0.05], [0.3], [0.37], [0.71], [0.96]])
-        for alpha in (0.2, 0.7, 1.3):
+        for alpha in (0.2, 0.4, 0.7, 1.0, 1.3):
+            # On the rows' nodes 0.4 and 1.0 the spline in α is C¹ with a jump in its second derivative,
+            # which central differences see at h times the jump (1e-6): 1e-4 there.
             step = 1e-6
             by_differences = (sample(alpha + step) - sample(alpha - step)) / (2 * step)
             np.testing.assert_allclose(np.asarray(jax.jacfwd(sample)(jnp.asarray(alpha))), np.asarray(by_differences),
-                                       rtol=1e-6, atol=1e-8)
+                                       rtol=1e-4 if alpha in (0.4, 1.0) else 1e-6, atol=1e-8)
+        for alpha, step in ((0.0, 1e-7), (1.5, -1e-7)):  # the end rows: a one-sided difference
+            by_differences = (sample(alpha + step) - sample(alpha)) / step
+            np.testing.assert_allclose(np.asarray(jax.jacfwd(sample)(jnp.asarray(alpha))), np.asarray(by_differences),
+                                       rtol=1e-5, atol=1e-7)
 
 
 def test_a_catmull_rom_conditional_must_make_a_density():
@@ -231,6 +247,10 @@ def test_a_catmull_rom_conditional_must_make_a_density():
         js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, rows, jnp.asarray([1.2, 0.2]))
     traced = jax.jit(lambda a: js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, a).integral())
     assert np.isnan(float(traced(2.0))) and np.isfinite(float(traced(0.7)))
+    # A batch of α of any shape is checked; traced nodes with concrete rows and α are built and differentiated.
+    assert js.CatmullRom2D(SPLINE_ALPHAS, SPLINE_NODES, SPLINE_ROWS, np.full((2, 3), 0.7)).batch_shape == (2, 3)
+    grad = jax.grad(lambda n: js.CatmullRom2D(SPLINE_ALPHAS, n, SPLINE_ROWS, 0.7).warp(jnp.asarray([[0.3]]))[0])
+    assert np.all(np.isfinite(np.asarray(grad(jnp.asarray(SPLINE_NODES, jnp.float32)))))
 
 
 WINDOW_TABLE = np.random.default_rng(8).random((6, 9))
@@ -271,12 +291,20 @@ def test_the_windowed_table_is_its_cells_over_the_window_mass():
         np.testing.assert_allclose(np.asarray(table.inverse(x)), points[:512], rtol=0, atol=1e-12)
         volume = np.abs(np.linalg.det(np.asarray(jax.vmap(jax.jacfwd(lambda row: table.warp(row)))(u))))
         np.testing.assert_allclose(np.asarray(table.pdf(x)) * volume, 1.0, rtol=1e-9)
+        # u on the edges: the Jacobian at u = 0, and a window whose top edge lies in a zero row (u₁ next
+        # to 1 must not carry y into it).
+        corner = jnp.asarray([[0.0, 0.0], [0.0, 0.5], [0.5, 0.0]])
+        volume = np.abs(np.linalg.det(np.asarray(jax.vmap(jax.jacfwd(lambda row: table.warp(row)))(corner))))
+        np.testing.assert_allclose(np.asarray(table.pdf(table.warp(corner))) * volume, 1.0, rtol=1e-9)
+        capped = js.WindowedPiecewiseConstant2D(WINDOW_TABLE, [0.1, 0.2], [0.9, 0.45])
+        top = jnp.asarray([[u0, np.nextafter(1.0, 0.0)] for u0 in np.linspace(0.0, 0.99, 64)])
+        assert np.all(np.asarray(capped.pdf(capped.warp(top))) > 0)
 
 
 def test_windowed_samples_move_with_the_window_and_small_windows_keep_float32_precision():
     """The derivatives of samples in the window's corners against central differences of the warp
-    (float64, five uniforms); a window holding 2e-4 of the table's mass has its float32 integral within
-    1e-5 of the float64 one (differences of a summed-area table would lose four digits there)."""
+    (float64, five uniforms); a window holding 4.6e-4 of the table's mass has its float32 integral within
+    1e-5 of the float64 one (differences of a summed-area table are off by 1e-4 there)."""
     def sample(low, high):
         return js.WindowedPiecewiseConstant2D(WINDOW_TABLE, low, high).warp(u)
 
@@ -306,6 +334,10 @@ def test_a_window_must_hold_mass():
         js.WindowedPiecewiseConstant2D(WINDOW_TABLE, [0.5, 0.2], [0.4, 0.9])
     with pytest.raises(ValueError, match="holds no mass"):
         js.WindowedPiecewiseConstant2D(WINDOW_TABLE, [0.45, 0.34], [0.54, 0.49])
+    with pytest.raises(ValueError, match="holds no mass"):  # inside the zero row, across every column
+        js.WindowedPiecewiseConstant2D(WINDOW_TABLE, [0.05, 0.35], [0.95, 0.45])
+    tiny = js.WindowedPiecewiseConstant2D(jnp.asarray(WINDOW_TABLE, jnp.float32), [0.9, 0.9], [0.90001, 0.90001])
+    assert float(tiny.integral()) > 0  # 1e-10 of the square: accepted (its mass is checked in float64)
     lows, highs = np.array([[0.0, 0.0], [0.1, 0.5]]), np.array([[1.0, 1.0], [0.9, 0.7]])
     batch = js.WindowedPiecewiseConstant2D(WINDOW_TABLE, lows, highs)
     np.testing.assert_allclose(np.asarray(batch.integral()), [_box_integral(WINDOW_TABLE, lo, hi)
