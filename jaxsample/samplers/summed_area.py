@@ -142,8 +142,9 @@ class WindowedPiecewiseConstant2D(Sampler):
 
     values: jax.Array = parameter(rank=2, doc="f on each cell, (R, C)")
     columns: jax.Array = parameter(rank=2)
-    low: jax.Array = parameter(0.0, 1.0, rank=1, doc="the window's lower corner (x₀, y₀)")
-    high: jax.Array = parameter(0.0, 1.0, rank=1, doc="the window's upper corner (x₁, y₁), above low")
+    # The corners' range is a joint one (0 <= low < high <= 1), checked here rather than declared per corner.
+    low: jax.Array = parameter(rank=1, doc="the window's lower corner (x₀, y₀), in [0, 1]²")
+    high: jax.Array = parameter(rank=1, doc="the window's upper corner (x₁, y₁), above low, in [0, 1]²")
     uniform_dims: ClassVar[int] = 2
     event_shape: ClassVar = (2,)
     measure: ClassVar = "area"
@@ -158,9 +159,10 @@ class WindowedPiecewiseConstant2D(Sampler):
         if corner_low is None or corner_high is None:
             return
         corner_low, corner_high = np.asarray(corner_low, np.float64), np.asarray(corner_high, np.float64)
-        if corner_low.shape[-1:] != (2,) or corner_high.shape[-1:] != (2,) or not np.all(corner_low < corner_high):
+        if (corner_low.shape[-1:] != (2,) or corner_high.shape[-1:] != (2,)
+                or not np.all((0.0 <= corner_low) & (corner_low < corner_high) & (corner_high <= 1.0))):
             raise ValueError(f"WindowedPiecewiseConstant2D: parameters 'low' and 'high' must be corners (x, y) with "
-                             f"low < high on both axes; got {corner_low.tolist()} and {corner_high.tolist()}")
+                             f"0 <= low < high <= 1 on both axes; got {corner_low.tolist()} and {corner_high.tolist()}")
         cells = concrete_value(values)
         if cells is not None:
             mass = _window_masses(np.asarray(cells, np.float64), corner_low, corner_high)
@@ -180,7 +182,8 @@ class WindowedPiecewiseConstant2D(Sampler):
         if self.batch_shape:
             return jnp.all(over_members(lambda member: member._parameters_valid(), self))
         declared = super()._parameters_valid()
-        valid = (jnp.all(self.low < self.high) & jnp.all(jnp.isfinite(self.values) & (self.values >= 0))
+        valid = (jnp.all((0.0 <= self.low) & (self.low < self.high) & (self.high <= 1.0))
+                 & jnp.all(jnp.isfinite(self.values) & (self.values >= 0))
                  & (self._column_masses()[2][-1] > 0))
         return valid if declared is None else declared & valid
 

@@ -332,6 +332,11 @@ def test_a_window_must_hold_mass():
     a batch of windows gives each one's integral."""
     with pytest.raises(ValueError, match="'low' and 'high'"):
         js.WindowedPiecewiseConstant2D(WINDOW_TABLE, [0.5, 0.2], [0.4, 0.9])
+    with pytest.raises(ValueError, match="0 <= low < high <= 1"):
+        js.WindowedPiecewiseConstant2D(WINDOW_TABLE, [0.5, 0.2], [1.1, 0.9])
+    traced = jax.jit(lambda high: js.WindowedPiecewiseConstant2D(WINDOW_TABLE, jnp.asarray([0.1, 0.2]),
+                                                                  high).integral())
+    assert np.isnan(float(traced(jnp.asarray([1.1, 0.9])))) and np.isfinite(float(traced(jnp.asarray([0.9, 0.9]))))
     with pytest.raises(ValueError, match="holds no mass"):
         js.WindowedPiecewiseConstant2D(WINDOW_TABLE, [0.45, 0.34], [0.54, 0.49])
     with pytest.raises(ValueError, match="holds no mass"):  # inside the zero row, across every column
