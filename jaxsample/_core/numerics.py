@@ -28,11 +28,19 @@ def one_minus_epsilon(dtype) -> float:
     return float(np.nextafter(np.array(1.0, dtype=dtype), np.array(0.0, dtype=dtype)))
 
 
+@jax.custom_jvp
 def clamp_rounding(x: jax.Array, low, high) -> jax.Array:
     """x clipped into [low, high] with x's own derivative: for a value that can leave the interval
     only by rounding (a position within a cell, a sample on its support's edge), so that the clip
-    neither zeroes the derivative outside nor halves it on a bound (`jnp.clip`'s 0.5 there)."""
-    return x + jax.lax.stop_gradient(jnp.clip(x, low, high) - x)
+    neither zeroes the derivative outside nor halves it on a bound (`jnp.clip`'s 0.5 there). The
+    value is `jnp.clip`'s, with nothing added to the program that is not differentiated."""
+    return jnp.clip(x, low, high)
+
+
+@clamp_rounding.defjvp
+def _clamp_rounding_jvp(primals, tangents):
+    x, low, high = primals
+    return jnp.clip(x, low, high), jnp.broadcast_to(tangents[0], jnp.shape(jnp.clip(x, low, high)))
 
 
 def clamp_unit_interval(u: jax.Array) -> jax.Array:
